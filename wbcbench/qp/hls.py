@@ -211,6 +211,17 @@ def pivoted_qr(M: Array, rank_tol: float) -> PivotedQR:
     return PivotedQR(h, tau, jpvt - 1, rank)
 
 
+def _triangular_solve(R: Array, rhs: Array, trans: int = 0) -> Array:
+    """``R⁻¹ rhs`` (trans 0) or ``R⁻ᵀ rhs`` (trans 1), reading only the upper triangle of ``R``.
+
+    LAPACK ``trtrs`` directly: the scipy wrapper's checks cost more than the solve at these sizes.
+    """
+    sol, info = lapack.dtrtrs(R, rhs, lower=0, trans=trans)
+    if info != 0:
+        raise SolverError(f"singular triangular factor (LAPACK dtrtrs info={info})")
+    return np.asarray(sol)
+
+
 def ls_coefficients(fac: PivotedQR, r: Array, k: float) -> Array:
     """Coefficients ``w`` of the (damped) min-norm least-squares solution ``u = Q[:, :len(w)] w``.
 
@@ -234,18 +245,18 @@ def ls_coefficients(fac: PivotedQR, r: Array, k: float) -> Array:
         rr = fac.rank
         if rr == 0:
             return np.zeros(0)
-        R = fac.r(rr)
         if rr == m:
-            return np.asarray(sla.solve_triangular(R[:, :rr], rp, trans="T", check_finite=False))
+            return _triangular_solve(fac.h[:rr, :rr], rp, trans=1)
+        R = fac.r(rr)
         # Dependent rows (a conflicting level): a least-squares solve in the rank-r factor.
         Qt, Rt = sla.qr(R.T, mode="economic", check_finite=False)
-        return np.asarray(sla.solve_triangular(Rt, Qt.T @ rp, check_finite=False))
+        return _triangular_solve(Rt, Qt.T @ rp)
     s = fac.tau.size
     if s == 0:
         return np.zeros(0)
     K = np.vstack([fac.r(s).T, k * np.eye(s)])
     Qk, Rk = sla.qr(K, mode="economic", check_finite=False)
-    return np.asarray(sla.solve_triangular(Rk, Qk[:m].T @ rp, check_finite=False))
+    return _triangular_solve(Rk, Qk[:m].T @ rp)
 
 
 def min_norm_lsq(M: Array, r: Array, k: float, rank_tol: float) -> tuple[Array, PivotedQR]:
@@ -299,7 +310,7 @@ def _multipliers(fac: PivotedQR, grad: Array) -> Array:
     nw = fac.piv.size
     rhs = fac.apply(-grad[:, None], "L", "T")[:nw, 0]
     lam = np.empty(nw)
-    lam[fac.piv] = sla.solve_triangular(fac.r(nw)[:, :nw], rhs, check_finite=False)
+    lam[fac.piv] = _triangular_solve(fac.h[:nw, :nw], rhs)
     return lam
 
 

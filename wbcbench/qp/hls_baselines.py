@@ -1,0 +1,249 @@
+"""Equality-only baselines for the hierarchical least-squares solver, and the size sweep.
+
+Two references the RQR-HQP paper compares its reduced QR method against (§II-D, Fig. 1):
+
+* the classical task-priority algorithm with SVD pseudo-inverses and null-space projectors
+  (eq. 5–6): ``x_i = x_{i-1} + (A_i P_{i-1})⁺ (b_i - A_i x_{i-1})``,
+  ``P_i = P_{i-1} - (A_i P_{i-1})⁺ (A_i P_{i-1})``;
+* a QR algorithm that keeps every level in full coordinates: at each level a full-size QR of
+  the stacked constraints above it gives an n × n projector, and the level is solved in all n
+  variables.
+
+Both return the same minimum-norm hierarchical solution as ``solve_hls`` (undamped, or damped
+with the same ``k``), with the same result type. ``scaling_series`` times the three against the
+problem size N.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+
+from wbcbench.errors import UnknownNameError, WbcBenchError
+from wbcbench.qp.hls import (
+    Array,
+    HlsResult,
+    Level,
+    LevelStats,
+    level_dampings,
+    min_norm_lsq,
+    pivoted_qr,
+    solve_hls,
+    start_point,
+)
+
+
+def _equality_tasks(levels: Sequence[Level]) -> list[tuple[Array, Array]]:
+    """(A, b) of every level; the baselines have no inequality handling."""
+    tasks = []
+    for i, lv in enumerate(levels):
+        if lv.C is not None or lv.A is None or lv.b is None:
+            raise WbcBenchError(
+                f"level {lv.name or i}: the SVD / full-QR baselines take equality-only levels"
+            )
+        tasks.append((lv.A, lv.b))
+    return tasks
+
+
+def _stats(name: str, t0: float, A: Array, b: Array, x: Array, rank: int, left: int) -> LevelStats:
+    return LevelStats(
+        name=name,
+        time=time.perf_counter() - t0,
+        iterations=0,
+        n_active=0,
+        n_saturated=0,
+        residual=float(np.linalg.norm(A @ x - b)),
+        violation=0.0,
+        rank=rank,
+        dof_left=left,
+        x=x.copy(),
+    )
+
+
+def solve_svd_hierarchy(
+    levels: Sequence[Level],
+    *,
+    damping: float | Sequence[float] | None = None,
+    x0: Array | None = None,
+    rank_tol: float = 1e-9,
+) -> HlsResult:
+    """Classical task-priority hierarchy with SVD pseudo-inverses (paper eq. 5–6).
+
+    Undamped, singular values ``<= rank_tol`` are truncated. Damped, the step uses
+    ``σ / (σ² + k²)`` on every singular value (damped least squares) while the projector update
+    uses the undamped, truncated pseudo-inverse, so the damping does not alter the null space.
+
+    Args:
+        levels: equality-only levels in priority order.
+        damping: overrides the levels' ``damping``.
+        x0: (n,) starting point (zeros by default).
+        rank_tol: singular-value threshold.
+
+    Returns:
+        Solution and per-level statistics (no iterations or active sets).
+    """
+    t_start = time.perf_counter()
+    tasks, ks = _equality_tasks(levels), level_dampings(levels, damping)
+    x = start_point(levels, x0)
+    n = x.size
+    P = np.eye(n)
+    stats = []
+    dof = n
+    for lv, (A, b), k in zip(levels, tasks, ks, strict=True):
+        t0 = time.perf_counter()
+        M = A @ P
+        U, s, Vt = sla.svd(M, full_matrices=False, check_finite=False)
+        r = int(np.count_nonzero(s > rank_tol))
+        c = U.T @ (b - A @ x)
+        if k > 0.0:
+            x = x + Vt.T @ (s / (s * s + k * k) * c)
+        else:
+            x = x + Vt[:r].T @ (c[:r] / s[:r])
+        P = P - Vt[:r].T @ Vt[:r]
+        dof -= r
+        stats.append(_stats(lv.name, t0, A, b, x, r, dof))
+    return HlsResult(x, stats, time.perf_counter() - t_start)
+
+
+def solve_fullqr_hierarchy(
+    levels: Sequence[Level],
+    *,
+    damping: float | Sequence[float] | None = None,
+    x0: Array | None = None,
+    rank_tol: float = 1e-9,
+) -> HlsResult:
+    """Task-priority hierarchy by QR in full coordinates (no reduction of the variable).
+
+    Level i factorises the stacked ``[A_1; ...; A_{i-1}]ᵀ`` (n × m_1+...+m_{i-1}, full n × n
+    orthogonal factor), forms the projector ``P = Z Zᵀ`` on its null space and solves
+    ``min ||A_i P d - (b_i - A_i x)||`` (+ ``k² ||d||²``) in all n variables.
+
+    Args:
+        levels: equality-only levels in priority order.
+        damping: overrides the levels' ``damping``.
+        x0: (n,) starting point (zeros by default).
+        rank_tol: ``|R_ii|`` threshold.
+
+    Returns:
+        Solution and per-level statistics (no iterations or active sets).
+    """
+    t_start = time.perf_counter()
+    tasks, ks = _equality_tasks(levels), level_dampings(levels, damping)
+    x = start_point(levels, x0)
+    n = x.size
+    stacked = np.zeros((0, n))
+    stats = []
+    for lv, (A, b), k in zip(levels, tasks, ks, strict=True):
+        t0 = time.perf_counter()
+        above = pivoted_qr(stacked.T, rank_tol)
+        Z = above.apply(np.eye(n), "L")[:, above.rank :]
+        P = Z @ Z.T
+        d, fac = min_norm_lsq(A @ P, b - A @ x, k, rank_tol)
+        x = x + d
+        stacked = np.vstack([stacked, A])
+        stats.append(_stats(lv.name, t0, A, b, x, fac.rank, n - above.rank - fac.rank))
+    return HlsResult(x, stats, time.perf_counter() - t_start)
+
+
+Solver = Callable[..., HlsResult]
+
+#: The three hierarchy algorithms, by the names used in benchmark tables.
+ALGORITHMS: dict[str, Solver] = {
+    "reduced_qr": solve_hls,
+    "full_qr": solve_fullqr_hierarchy,
+    "svd": solve_svd_hierarchy,
+}
+
+
+def get_algorithm(name: str) -> Solver:
+    """Look up a hierarchy algorithm by name."""
+    if name not in ALGORITHMS:
+        raise UnknownNameError("hierarchy algorithm", name, ALGORITHMS)
+    return ALGORITHMS[name]
+
+
+def fig1_stack(n: int, n_levels: int = 4, fill: float = 0.8, seed: int = 0) -> list[Level]:
+    """A fixed-shape random stack for the size sweep (the paper's Fig. 1 setting).
+
+    ``n_levels`` equality levels of ``round(fill n / n_levels)`` rows each, Gaussian entries, so
+    the levels together use ``fill`` of the n variables whatever n is.
+
+    Args:
+        n: number of variables N.
+        n_levels: number of levels.
+        fill: fraction of the variables the stack constrains, in (0, 1].
+        seed: random seed.
+
+    Returns:
+        The levels, highest priority first.
+    """
+    rng = np.random.default_rng(seed)
+    m = max(1, round(fill * n / n_levels))
+    return [
+        Level(rng.standard_normal((m, n)), rng.standard_normal(m), name=f"L{i + 1}")
+        for i in range(n_levels)
+    ]
+
+
+def _time_once(fn: Solver, levels: Sequence[Level]) -> tuple[float, Array]:
+    t0 = time.perf_counter()
+    x = fn(levels).x
+    return time.perf_counter() - t0, x
+
+
+def scaling_series(
+    sizes: Sequence[int],
+    repeats: int = 50,
+    *,
+    n_levels: int = 4,
+    fill: float = 0.8,
+    seed: int = 0,
+    algorithms: Sequence[str] = tuple(ALGORITHMS),
+) -> list[dict[str, Any]]:
+    """Median solve time of each algorithm against the problem size N (paper Fig. 1).
+
+    Protocol: one stack per N (``fig1_stack``), one discarded warm-up call per algorithm, then
+    ``repeats`` rounds that call every algorithm once in turn, so slow drifts of the machine
+    affect all of them alike.
+
+    Args:
+        sizes: values of N.
+        repeats: timed calls per algorithm and N.
+        n_levels: levels in the stack.
+        fill: fraction of the variables the stack constrains.
+        seed: random seed of the stacks.
+        algorithms: names from ``ALGORITHMS``.
+
+    Returns:
+        One row per (N, algorithm): ``N``, ``algorithm``, ``median_s``, ``p25_s``, ``p75_s``,
+        ``repeats``, ``max_abs_diff`` (largest deviation of x from the ``reduced_qr`` solution).
+    """
+    fns = {name: get_algorithm(name) for name in algorithms}
+    rows: list[dict[str, Any]] = []
+    for n in sizes:
+        levels = fig1_stack(n, n_levels, fill, seed)
+        ref = solve_hls(levels).x
+        xs = {name: fn(levels).x for name, fn in fns.items()}  # warm-up
+        times: dict[str, list[float]] = {name: [] for name in fns}
+        for _ in range(repeats):
+            for name, fn in fns.items():
+                dt, xs[name] = _time_once(fn, levels)
+                times[name].append(dt)
+        for name in fns:
+            t = np.asarray(times[name])
+            rows.append(
+                {
+                    "N": int(n),
+                    "algorithm": name,
+                    "median_s": float(np.median(t)),
+                    "p25_s": float(np.percentile(t, 25)),
+                    "p75_s": float(np.percentile(t, 75)),
+                    "repeats": int(repeats),
+                    "max_abs_diff": float(np.abs(xs[name] - ref).max()),
+                }
+            )
+    return rows
