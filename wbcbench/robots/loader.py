@@ -1,0 +1,381 @@
+"""Load a humanoid once into MuJoCo (simulation) and Pinocchio (control), joined by name.
+
+``load_robot("tocabi_like")`` loads a generated model; ``load_robot("path/to/robot.xml")`` or
+``.urdf`` loads any humanoid with a free-floating base. Joints, frames and actuators are matched
+by NAME between the two libraries, never by position: URDF loaders order joints differently.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from wbcbench.errors import ModelError, UnknownNameError
+from wbcbench.robots.generator import MODELS_DIR
+from wbcbench.robots.library import SPECS
+from wbcbench.robots.spec import RobotInfo
+
+_MODEL_SUFFIXES = (".xml", ".mjcf", ".urdf")
+
+
+def available_robots() -> list[str]:
+    """Names of the generated robots that ``load_robot`` accepts (sorted)."""
+    return sorted(SPECS)
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A humanoid with a free-floating base, as both a MuJoCo and a Pinocchio model.
+
+    Arrays of length k follow ``joint_names``, the Pinocchio order of the k actuated joints;
+    Pinocchio's configuration is ``q = [p, qx, qy, qz, qw, joints]`` (nq = 7 + k) and its
+    velocity ``v = [v_local, ω_local, joint rates]`` (nv = 6 + k).
+
+    Attributes:
+        name: model name (library name or file stem).
+        path: model file.
+        mj_model: MuJoCo model (free joint first, one motor per actuated joint).
+        pin_model: Pinocchio model (free flyer first).
+        info: metadata (contact, hand, head frames …); mostly empty for external files.
+        joint_names: actuated joint names in Pinocchio order, (k,).
+        tau_max: torque limits [N·m], (k,); ``inf`` when the model gives none.
+        q_min, q_max: position limits [rad], (k,); ``∓inf`` for unlimited joints.
+        v_max: velocity limits [rad/s], (k,); ``inf`` when unknown.
+        armature: reflected rotor inertia [kg·m²], (k,).
+        damping: viscous joint damping [N·m·s/rad], (k,).
+        frictionloss: dry joint friction [N·m], (k,).
+        mj_qpos_adr: MuJoCo qpos address of each actuated joint, (k,).
+        mj_dof_adr: MuJoCo dof (qvel) address of each actuated joint, (k,).
+        actuator_ids: MuJoCo actuator id driving each actuated joint, (k,).
+        act_gear: that actuator's gear (torque = gear · ctrl), (k,).
+        keyframe_names: MuJoCo keyframes, in file order.
+    """
+
+    name: str
+    path: Path
+    mj_model: mujoco.MjModel
+    pin_model: pin.Model
+    info: RobotInfo
+    joint_names: tuple[str, ...]
+    tau_max: np.ndarray
+    q_min: np.ndarray
+    q_max: np.ndarray
+    v_max: np.ndarray
+    armature: np.ndarray
+    damping: np.ndarray
+    frictionloss: np.ndarray
+    mj_qpos_adr: np.ndarray
+    mj_dof_adr: np.ndarray
+    actuator_ids: np.ndarray
+    act_gear: np.ndarray
+    keyframe_names: tuple[str, ...]
+    _frames: dict[str, int] = field(repr=False)
+
+    @property
+    def k(self) -> int:
+        """Number of actuated joints."""
+        return len(self.joint_names)
+
+    @property
+    def nq(self) -> int:
+        """Pinocchio configuration size, 7 + k."""
+        return 7 + self.k
+
+    @property
+    def nv(self) -> int:
+        """Velocity size, 6 + k (same in MuJoCo and Pinocchio)."""
+        return 6 + self.k
+
+    @property
+    def frame_names(self) -> list[str]:
+        """Names ``frame_id`` accepts: sites (Pinocchio operational frames) and bodies."""
+        return sorted(self._frames)
+
+    def has_frame(self, name: str) -> bool:
+        """Whether ``name`` is a site or body of the model."""
+        return name in self._frames
+
+    def frame_id(self, name: str) -> int:
+        """Pinocchio frame id of site or body ``name``; a site shadows a body of the same name."""
+        try:
+            return self._frames[name]
+        except KeyError:
+            raise UnknownNameError("frame", name, self._frames) from None
+
+    def joint_index(self, name: str) -> int:
+        """Index of actuated joint ``name`` in the k-vectors (``tau_max``, ``q[7:]`` …)."""
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise UnknownNameError("joint", name, self.joint_names) from None
+
+    def keyframe(self, name: str = "stand") -> tuple[np.ndarray, np.ndarray]:
+        """Keyframe ``name`` as Pinocchio ``(q (nq,), v (nv,))``."""
+        if name not in self.keyframe_names:
+            raise UnknownNameError("keyframe", name, self.keyframe_names)
+        key = self.keyframe_names.index(name)
+        return self.mj_to_pin(self.mj_model.key_qpos[key], self.mj_model.key_qvel[key])
+
+    def mj_to_pin(
+        self, qpos: np.ndarray, qvel: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """MuJoCo state → Pinocchio ``(q, v)``; see ``convert.mj_to_pin``."""
+        from wbcbench.robots import convert  # convert imports this module
+
+        return convert.mj_to_pin(self, qpos, qvel)
+
+    def pin_to_mj(
+        self, q: np.ndarray, v: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Pinocchio state → MuJoCo ``(qpos, qvel)``; see ``convert.pin_to_mj``."""
+        from wbcbench.robots import convert
+
+        return convert.pin_to_mj(self, q, v)
+
+    def fresh_mj_model(self) -> mujoco.MjModel:
+        """A deep copy of ``mj_model``, to change (timestep, limits …) without side effects."""
+        return copy.copy(self.mj_model)
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading
+
+
+def load_robot(name_or_path: str | os.PathLike[str]) -> Robot:
+    """Load a generated robot by name, or any free-floating humanoid MJCF / URDF by path.
+
+    Raises:
+        UnknownNameError: a bare name that is not a generated robot.
+        ModelError: the file is missing or not a usable free-floating model.
+    """
+    text = os.fspath(name_or_path)
+    if text in SPECS:
+        path = MODELS_DIR / f"{text}.xml"
+        if not path.is_file():
+            raise ModelError(f"{path}: generated model missing; run `make models`")
+        return _load(path, text, SPECS[text]().info)
+    looks_like_path = (
+        isinstance(name_or_path, os.PathLike)
+        or text.lower().endswith(_MODEL_SUFFIXES)
+        or os.sep in text
+        or "/" in text
+    )
+    if not looks_like_path:
+        raise UnknownNameError(
+            "robot", text, available_robots(), hint="or give a path to an MJCF/URDF file"
+        )
+    path = Path(text).expanduser()
+    if not path.is_file():
+        raise ModelError(f"{path}: no such robot model file")
+    return _load(path, path.stem, RobotInfo())
+
+
+def _load(path: Path, name: str, info: RobotInfo) -> Robot:
+    is_urdf = path.suffix.lower() == ".urdf"
+    try:
+        pin_model = (
+            pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+            if is_urdf
+            else pin.buildModelFromMJCF(str(path))
+        )
+    except (RuntimeError, ValueError) as exc:
+        raise ModelError(f"{path}: Pinocchio cannot read it: {exc}") from exc
+    _check_pinocchio(path, pin_model)
+    joint_names = tuple(pin_model.names[i] for i in range(2, pin_model.njoints))
+    mj_model = _mujoco_model(path, is_urdf, pin_model, joint_names)
+    return _assemble(path, name, info, mj_model, pin_model, joint_names)
+
+
+def _check_pinocchio(path: Path, model: pin.Model) -> None:
+    if model.njoints < 2 or model.joints[1].shortname() != "JointModelFreeFlyer":
+        raise ModelError(
+            f"{path}: the root body needs a free joint (a free-floating humanoid base)"
+        )
+    for i in range(2, model.njoints):
+        joint = model.joints[i]
+        if joint.nq != 1 or joint.nv != 1:
+            raise ModelError(
+                f"{path}: joint {model.names[i]!r} is a {joint.shortname()}; only 1-DoF "
+                "bounded revolute or prismatic joints are supported (no continuous/ball joints)"
+            )
+    # MuJoCo ignores the free body's file pose (it is only qpos0); Pinocchio must too.
+    model.jointPlacements[1] = pin.SE3.Identity()
+
+
+def _mujoco_model(
+    path: Path, is_urdf: bool, pin_model: pin.Model, joint_names: tuple[str, ...]
+) -> mujoco.MjModel:
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except Exception as exc:  # MuJoCo raises a bare ValueError/Exception on parse errors
+        raise ModelError(f"{path}: MuJoCo cannot read it: {exc}") from exc
+    # Both libraries must see the file's inertials, not geom-derived ones, and the free joint
+    # at the body origin.
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    spec.compiler.alignfree = False
+    spec.compiler.balanceinertia = False
+    if is_urdf:
+        _urdf_to_floating(spec, pin_model, joint_names)
+    elif not _plain_motors(spec, joint_names):
+        _replace_actuators(spec, joint_names)
+    try:
+        return spec.compile()
+    except Exception as exc:
+        raise ModelError(f"{path}: MuJoCo cannot compile it: {exc}") from exc
+
+
+def _urdf_to_floating(spec: mujoco.MjSpec, pin_model: pin.Model, joints: tuple[str, ...]) -> None:
+    """Free joint on the root link, URDF effort limits as force limits, one motor per joint."""
+    spec.compiler.fusestatic = False  # keep fixed links as bodies: they are named frames
+    root = spec.worldbody.first_body()
+    if root is None:
+        raise ModelError("URDF has no links")
+    root.add_freejoint(name="root")
+    for i, name in enumerate(joints):
+        effort = float(pin_model.effortLimit[6 + i])
+        joint = spec.joint(name)
+        if np.isfinite(effort) and effort > 0:
+            joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            joint.actfrcrange = [-effort, effort]
+    _add_motors(spec, joints)
+
+
+def _joint_limit(spec: mujoco.MjSpec, name: str) -> float:
+    joint = spec.joint(name)
+    if joint.actfrclimited == mujoco.mjtLimited.mjLIMITED_TRUE:
+        return float(np.max(np.abs(joint.actfrcrange)))
+    return float("inf")
+
+
+def _add_motors(spec: mujoco.MjSpec, joints: tuple[str, ...]) -> None:
+    for name in joints:
+        limit = _joint_limit(spec, name)
+        motor = spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        motor.set_to_motor()
+        motor.gear[0] = 1.0
+        if np.isfinite(limit):
+            motor.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            motor.ctrlrange = [-limit, limit]
+
+
+def _is_plain_motor(act: mujoco.MjsActuator) -> bool:
+    return bool(
+        act.trntype == mujoco.mjtTrn.mjTRN_JOINT
+        and act.dyntype == mujoco.mjtDyn.mjDYN_NONE
+        and act.gaintype == mujoco.mjtGain.mjGAIN_FIXED
+        and act.biastype == mujoco.mjtBias.mjBIAS_NONE
+        and act.gainprm[0] == 1.0
+    )
+
+
+def _plain_motors(spec: mujoco.MjSpec, joints: tuple[str, ...]) -> bool:
+    """Whether every joint is driven by exactly one plain torque motor (and nothing else is)."""
+    targets = [a.target for a in spec.actuators]
+    return all(_is_plain_motor(a) for a in spec.actuators) and sorted(targets) == sorted(joints)
+
+
+def _replace_actuators(spec: mujoco.MjSpec, joints: tuple[str, ...]) -> None:
+    """Swap whatever actuators the file has (position servos …) for one torque motor per joint.
+
+    A whole-body controller commands torques; a servo's force limit becomes the torque limit
+    when the joint has none.
+    """
+    for act in list(spec.actuators):
+        if act.target in joints and act.forcelimited == mujoco.mjtLimited.mjLIMITED_TRUE:
+            joint = spec.joint(act.target)
+            if joint.actfrclimited != mujoco.mjtLimited.mjLIMITED_TRUE:
+                joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                joint.actfrcrange = list(act.forcerange)
+        spec.delete(act)
+    _add_motors(spec, joints)
+
+
+def _name2id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str, path: Path) -> int:
+    idx = mujoco.mj_name2id(model, kind, name)
+    if idx < 0:
+        raise ModelError(f"{path}: MuJoCo has no {kind.name[6:].lower()} named {name!r}")
+    return int(idx)
+
+
+def _assemble(
+    path: Path,
+    name: str,
+    info: RobotInfo,
+    m: mujoco.MjModel,
+    pin_model: pin.Model,
+    joint_names: tuple[str, ...],
+) -> Robot:
+    free = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+    if len(free) != 1 or m.jnt_qposadr[free[0]] != 0 or m.jnt_dofadr[free[0]] != 0:
+        raise ModelError(f"{path}: MuJoCo needs exactly one free joint, on the root body")
+    if m.nv != 6 + len(joint_names):
+        raise ModelError(
+            f"{path}: MuJoCo has {m.nv} dofs, Pinocchio {6 + len(joint_names)}; "
+            "the joints of both must match one for one"
+        )
+    jid = np.array([_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j, path) for j in joint_names], int)
+    act_of_joint = {
+        int(m.actuator_trnid[a, 0]): a
+        for a in range(m.nu)
+        if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+    }
+    missing = [j for j, i in zip(joint_names, jid, strict=True) if int(i) not in act_of_joint]
+    if missing:
+        raise ModelError(f"{path}: joints without an actuator: {', '.join(missing)}")
+    act = np.array([act_of_joint[int(i)] for i in jid], dtype=int)
+
+    limited = m.jnt_limited[jid].astype(bool)
+    q_min = np.where(limited, m.jnt_range[jid, 0], -np.inf)
+    q_max = np.where(limited, m.jnt_range[jid, 1], np.inf)
+    gear = m.actuator_gear[act, 0].copy()
+    frc_limited = m.jnt_actfrclimited[jid].astype(bool)
+    ctrl_limited = m.actuator_ctrllimited[act].astype(bool)
+    ctrl_limit = np.abs(m.actuator_ctrlrange[act]).max(axis=1) * np.abs(gear)
+    tau_max = np.where(
+        frc_limited,
+        np.abs(m.jnt_actfrcrange[jid]).max(axis=1),
+        np.where(ctrl_limited, ctrl_limit, np.inf),
+    )
+    if info.velocity_limits:
+        v_max = np.array([info.velocity_limits.get(j, np.inf) for j in joint_names])
+    else:
+        v_max = np.asarray(pin_model.velocityLimit[6:], dtype=float).copy()
+        v_max[v_max >= np.finfo(float).max] = np.inf
+
+    dof = m.jnt_dofadr[jid]
+    frames: dict[str, int] = {}
+    # Sites are written after bodies so a site shadows a body of the same name ("head").
+    for kind in (pin.FrameType.BODY, pin.FrameType.OP_FRAME):
+        for fid, frame in enumerate(pin_model.frames):
+            if frame.type == kind:
+                frames[frame.name] = fid
+    keys = tuple(
+        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_KEY, i) or f"key{i}" for i in range(m.nkey)
+    )
+    return Robot(
+        name=name,
+        path=path,
+        mj_model=m,
+        pin_model=pin_model,
+        info=info,
+        joint_names=joint_names,
+        tau_max=tau_max,
+        q_min=q_min,
+        q_max=q_max,
+        v_max=v_max,
+        armature=m.dof_armature[dof].copy(),
+        damping=m.dof_damping[dof].copy(),
+        frictionloss=m.dof_frictionloss[dof].copy(),
+        mj_qpos_adr=m.jnt_qposadr[jid].astype(int),
+        mj_dof_adr=dof.astype(int),
+        actuator_ids=act,
+        act_gear=gear,
+        keyframe_names=keys,
+        _frames=frames,
+    )
