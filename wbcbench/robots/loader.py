@@ -246,9 +246,16 @@ def _urdf_to_floating(spec: mujoco.MjSpec, pin_model: pin.Model, joints: tuple[s
     _add_motors(spec, joints)
 
 
+def _is_limited(flag: int, rng: np.ndarray) -> bool:
+    """MJCF limit flag: "true", or "auto" with a nonempty range (autolimits)."""
+    if flag == mujoco.mjtLimited.mjLIMITED_TRUE:
+        return True
+    return bool(flag == mujoco.mjtLimited.mjLIMITED_AUTO and rng[0] < rng[1])
+
+
 def _joint_limit(spec: mujoco.MjSpec, name: str) -> float:
     joint = spec.joint(name)
-    if joint.actfrclimited == mujoco.mjtLimited.mjLIMITED_TRUE:
+    if _is_limited(joint.actfrclimited, joint.actfrcrange):
         return float(np.max(np.abs(joint.actfrcrange)))
     return float("inf")
 
@@ -287,9 +294,9 @@ def _replace_actuators(spec: mujoco.MjSpec, joints: tuple[str, ...]) -> None:
     when the joint has none.
     """
     for act in list(spec.actuators):
-        if act.target in joints and act.forcelimited == mujoco.mjtLimited.mjLIMITED_TRUE:
+        if act.target in joints and _is_limited(act.forcelimited, act.forcerange):
             joint = spec.joint(act.target)
-            if joint.actfrclimited != mujoco.mjtLimited.mjLIMITED_TRUE:
+            if not _is_limited(joint.actfrclimited, joint.actfrcrange):
                 joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
                 joint.actfrcrange = list(act.forcerange)
         spec.delete(act)
