@@ -334,6 +334,19 @@ def test_inequality_only_level_first_finds_a_feasible_point() -> None:
     assert np.abs(res.x - x_ref).max() <= 1e-6
 
 
+def test_damped_level_with_active_inequalities_matches_damped_qp() -> None:
+    rng = np.random.default_rng(5)
+    n, k = 10, 0.5
+    A, b = rng.standard_normal((3, n)), 10.0 * rng.standard_normal(3)
+    box = Level(C=np.eye(n), l=np.full(n, -0.1), u=np.full(n, 0.1), name="limits")
+    res = solve_hls([box, Level(A, b, damping=k), Level(np.eye(n), np.zeros(n))])
+    # Level 2 alone: min ||A x - b||² + k² ||x||² in the box (strictly convex, so unique).
+    G, h = np.vstack([np.eye(n), -np.eye(n)]), np.full(2 * n, 0.1)
+    x_ref = _qp(A.T @ A + k * k * np.eye(n), -A.T @ b, np.zeros((0, n)), np.zeros(0), G, h)
+    assert res.levels[1].n_saturated > 0
+    assert np.abs(res.levels[1].x - x_ref).max() <= 1e-6
+
+
 def test_inactive_inequalities_leave_the_equality_solution_unchanged() -> None:
     levels = _equality_stack(12, 1, posture=True)
     rng = np.random.default_rng(1)
