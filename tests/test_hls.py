@@ -1,13 +1,13 @@
 """Hierarchical least squares: reduced regularised QR against its baselines and a QP cascade.
 
 The references are independent of the solver under test: the SVD task-priority algorithm
-(projectors, no QR), the full-coordinate QR algorithm, and a cascade of generic QPs, one per
-level, with the optimal task values of the levels above held as equalities.
+(projectors, no QR), the full-coordinate QR algorithm, and a cascade of generic QPs (Clarabel,
+an interior-point method), one per level, with the optimal task values of the levels above held
+as equalities.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable
 
 import numpy as np
@@ -146,28 +146,14 @@ def test_damping_does_not_shrink_the_null_space() -> None:
 # --------------------------------------------------------------------------------------------
 
 
-def _qp_generic(H: Array, g: Array, E: Array, e: Array, G: Array, h: Array) -> Array | None:
-    """``min ½xᵀHx + gᵀx, Ex = e, Gx <= h`` through ``wbcbench.qp`` if its solver is there."""
-    qp = importlib.import_module("wbcbench.qp")
-    problem_cls, solve = getattr(qp, "Problem", None), getattr(qp, "solve", None)
-    if problem_cls is None or solve is None:
-        return None
-    prob = problem_cls(H, g, E, e, G, np.full(h.size, -np.inf), h)
-    sol = solve(prob, solver="proxqp", tier="high")
-    assert sol.success
-    return np.asarray(sol.x)
-
-
 def _qp(H: Array, g: Array, E: Array, e: Array, G: Array, h: Array) -> Array:
-    """Same QP by Clarabel (interior point) when the generic layer is not there.
+    """``min ½xᵀHx + gᵀx, Ex = e, Gx <= h`` by Clarabel (interior point), called directly.
 
-    Not quadprog: it needs a definite Hessian and independent active constraints, and the
-    cascade's QPs are semidefinite and degenerate (saturated inequalities depend on the fixed
-    task rows); quadprog reports them "inconsistent".
+    The cascade's QPs are semidefinite and degenerate (saturated inequalities depend on the
+    fixed task rows, equalities repeat). quadprog needs a definite Hessian and independent
+    active constraints and reports them "inconsistent"; ProxQP (eps_abs 1e-9) declares several
+    of them primal infeasible. Clarabel solves all of them.
     """
-    x = _qp_generic(H, g, E, e, G, h)
-    if x is not None:
-        return x
     import clarabel
     from scipy import sparse
 
