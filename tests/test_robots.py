@@ -255,8 +255,8 @@ def test_unknown_robot_lists_choices() -> None:
     with pytest.raises(UnknownNameError) as exc:
         load_robot("nao")
     assert str(exc.value) == (
-        "unknown robot 'nao'; valid choices: comanplus_like, tocabi_like. "
-        "or give a path to an MJCF/URDF file"
+        "unknown robot 'nao'; valid choices: comanplus_like, tocabi_like "
+        "(or give a path to an MJCF/URDF file)"
     )
 
 

@@ -32,7 +32,7 @@ class UnknownNameError(WbcBenchError, KeyError):
         self.valid = sorted(valid)
         msg = f"unknown {kind} {name!r}; valid choices: {', '.join(self.valid) or '(none)'}"
         if hint:
-            msg += f". {hint}"
+            msg += f" ({hint})"
         super().__init__(msg)
 
     def __str__(self) -> str:  # KeyError would quote the message

@@ -1,1 +1,25 @@
+"""Controller plugins and their registry."""
 
+from wbcbench.controllers.base import (
+    ControlOutput,
+    Controller,
+    ControllerConfig,
+    ControllerContext,
+)
+from wbcbench.controllers.registry import (
+    CONTROLLERS,
+    available_controllers,
+    controller_class,
+    make_controller,
+)
+
+__all__ = [
+    "CONTROLLERS",
+    "ControlOutput",
+    "Controller",
+    "ControllerConfig",
+    "ControllerContext",
+    "available_controllers",
+    "controller_class",
+    "make_controller",
+]

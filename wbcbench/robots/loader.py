@@ -147,8 +147,12 @@ class Robot:
 # Loading
 
 
-def load_robot(name_or_path: str | os.PathLike[str]) -> Robot:
+def load_robot(name_or_path: str | os.PathLike[str], base_dir: Path | None = None) -> Robot:
     """Load a generated robot by name, or any free-floating humanoid MJCF / URDF by path.
+
+    A relative path is resolved against ``base_dir`` (a scenario file's folder) when given.
+    Loaded robots are cached by file and modification time: models are read-only after loading
+    (simulations work on :meth:`Robot.fresh_mj_model` copies).
 
     Raises:
         UnknownNameError: a bare name that is not a generated robot.
@@ -159,7 +163,7 @@ def load_robot(name_or_path: str | os.PathLike[str]) -> Robot:
         path = MODELS_DIR / f"{text}.xml"
         if not path.is_file():
             raise ModelError(f"{path}: generated model missing; run `make models`")
-        return _load(path, text, SPECS[text]().info)
+        return _cached_load(path, text, SPECS[text]().info)
     looks_like_path = (
         isinstance(name_or_path, os.PathLike)
         or text.lower().endswith(_MODEL_SUFFIXES)
@@ -171,9 +175,23 @@ def load_robot(name_or_path: str | os.PathLike[str]) -> Robot:
             "robot", text, available_robots(), hint="or give a path to an MJCF/URDF file"
         )
     path = Path(text).expanduser()
+    if not path.is_absolute() and base_dir is not None and not path.is_file():
+        path = Path(base_dir) / path
     if not path.is_file():
         raise ModelError(f"{path}: no such robot model file")
-    return _load(path, path.stem, RobotInfo())
+    return _cached_load(path, path.stem, None)
+
+
+_CACHE: dict[tuple[str, float, str], Robot] = {}
+
+
+def _cached_load(path: Path, name: str, info: RobotInfo | None) -> Robot:
+    key = (str(path.resolve()), path.stat().st_mtime, name)
+    robot = _CACHE.get(key)
+    if robot is None:
+        robot = _load(path, name, info if info is not None else RobotInfo())
+        _CACHE[key] = robot
+    return robot
 
 
 def _load(path: Path, name: str, info: RobotInfo) -> Robot:

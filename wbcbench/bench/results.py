@@ -1,0 +1,109 @@
+"""The results store of one output folder.
+
+``runs.csv`` holds one row per run, ``metrics.csv`` the metrics of every run in long form, both
+appended as each run finishes (so a crash loses nothing) and mirrored to Parquet;
+``logs/<run_id>.parquet`` holds each run's per-tick log and ``provenance.json`` the machine,
+versions and code the results were measured with.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from wbcbench.bench.provenance import provenance
+
+RUN_COLUMNS = (
+    "run_id",
+    "scenario",
+    "scenario_hash",
+    "robot",
+    "controller",
+    "controller_config",
+    "solver",
+    "tier",
+    "mode",
+    "seed",
+    "status",
+    "fell",
+    "message",
+    "ticks",
+    "sim_duration_s",
+    "wall_time_s",
+    "failures",
+    "code_version",
+)
+METRIC_COLUMNS = ("run_id", "scenario", "controller", "solver", "task", "metric", "value", "unit")
+
+
+class ResultsStore:
+    """Append-only tidy tables in one folder."""
+
+    def __init__(self, folder: str | Path) -> None:
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        (self.folder / "logs").mkdir(exist_ok=True)
+        self.runs_csv = self.folder / "runs.csv"
+        self.metrics_csv = self.folder / "metrics.csv"
+        self._write_provenance()
+
+    def _write_provenance(self) -> None:
+        path = self.folder / "provenance.json"
+        info = provenance()
+        previous: dict[str, Any] = {}
+        if path.exists():
+            try:
+                previous = json.loads(path.read_text())
+            except json.JSONDecodeError:
+                previous = {}
+        info["scenarios"] = previous.get("scenarios", {})
+        self.provenance = info
+        path.write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")
+
+    def record_scenario(self, name: str, scenario_hash: str, path: str) -> None:
+        self.provenance["scenarios"][name] = {"hash": scenario_hash, "file": path}
+        (self.folder / "provenance.json").write_text(
+            json.dumps(self.provenance, indent=2, sort_keys=True) + "\n"
+        )
+
+    @staticmethod
+    def _append(path: Path, columns: tuple[str, ...], rows: list[dict[str, Any]]) -> None:
+        new = not path.exists()
+        with path.open("a", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
+            if new:
+                writer.writeheader()
+            writer.writerows(rows)
+            fh.flush()
+
+    def add_run(
+        self,
+        run: dict[str, Any],
+        metrics: list[dict[str, Any]],
+        log: dict[str, Any] | None = None,
+    ) -> None:
+        """Append one run, its metrics and its per-tick log; refresh the Parquet mirrors."""
+        if log:
+            pd.DataFrame(log).to_parquet(self.folder / "logs" / f"{run['run_id']}.parquet")
+        self._append(self.metrics_csv, METRIC_COLUMNS, metrics)
+        self._append(self.runs_csv, RUN_COLUMNS, [run])
+        self._mirror()
+
+    def _mirror(self) -> None:
+        for csv_path in (self.runs_csv, self.metrics_csv):
+            if csv_path.exists():
+                pd.read_csv(csv_path).to_parquet(csv_path.with_suffix(".parquet"), index=False)
+
+    def runs(self) -> pd.DataFrame:
+        return pd.read_csv(self.runs_csv) if self.runs_csv.exists() else pd.DataFrame()
+
+    def metrics(self) -> pd.DataFrame:
+        return pd.read_csv(self.metrics_csv) if self.metrics_csv.exists() else pd.DataFrame()
+
+    def done_run_ids(self) -> set[str]:
+        runs = self.runs()
+        return set(runs["run_id"]) if not runs.empty else set()

@@ -1,0 +1,109 @@
+"""Run scenario × controller × solver combinations and record each as it finishes.
+
+A run that raises, or whose solver keeps failing, becomes a row with status ``failed`` or
+``error`` and its message; the other runs go on. A run already in the store (same scenario hash,
+settings and code version) is skipped, so an interrupted command resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from wbcbench.bench.results import ResultsStore
+from wbcbench.errors import WbcBenchError
+from wbcbench.metrics.run_metrics import run_metrics
+from wbcbench.robots.loader import load_robot
+from wbcbench.scenarios.load import LoadedScenario, build_contacts
+from wbcbench.sim.closed_loop import RunResult, RunSettings, run_closed_loop
+
+
+def code_version(store: ResultsStore) -> str:
+    """Package version and commit (without the dirty mark, so edits to docs do not re-run)."""
+    return f"{store.provenance['wbcbench']}@{store.provenance['git_commit'].split('+')[0]}"
+
+
+def run_id(loaded: LoadedScenario, settings: RunSettings, version: str, seed: int = 0) -> str:
+    key = json.dumps(
+        [
+            loaded.name,
+            loaded.hash,
+            settings.controller,
+            settings.controller_config,
+            settings.solver,
+            settings.tier,
+            settings.mode,
+            seed,
+            version,
+        ],
+        sort_keys=True,
+    )
+    return hashlib.sha256(key.encode()).hexdigest()[:16]
+
+
+@dataclass
+class RunRecord:
+    row: dict[str, Any]
+    metrics: list[dict[str, Any]]
+    result: RunResult | None
+
+
+def execute(
+    loaded: LoadedScenario,
+    settings: RunSettings,
+    store: ResultsStore,
+    progress: Callable[[int, int], None] | None = None,
+    skip_done: bool = True,
+) -> RunRecord | None:
+    """Run one combination and append it to the store (None when it was already there)."""
+    version = code_version(store)
+    rid = run_id(loaded, settings, version)
+    if skip_done and rid in store.done_run_ids():
+        return None
+    spec = loaded.spec
+    row: dict[str, Any] = dict(
+        run_id=rid,
+        scenario=loaded.name,
+        scenario_hash=loaded.hash,
+        robot=spec.robot,
+        controller=settings.controller,
+        controller_config=json.dumps(settings.controller_config, sort_keys=True),
+        solver=settings.solver,
+        tier=settings.tier,
+        mode=settings.mode,
+        seed=0,
+        code_version=version,
+    )
+    base = dict(scenario=loaded.name, controller=settings.controller, solver=settings.solver)
+    metrics: list[dict[str, Any]] = []
+    result: RunResult | None = None
+    log = None
+    try:
+        robot = load_robot(spec.robot, base_dir=loaded.path.parent)
+        result = run_closed_loop(loaded, settings, robot=robot, progress=progress)
+        contacts = build_contacts(spec, robot)
+        window = spec.metrics.window
+        for m in run_metrics(result, contacts, window, spec.metrics.timing_warmup):
+            metrics.append(dict(run_id=rid, **base, **m.__dict__))
+        row.update(
+            status=result.status,
+            fell=result.fell,
+            message=result.message,
+            ticks=result.ticks,
+            sim_duration_s=result.ticks * spec.dt,
+            wall_time_s=round(result.wall_time, 3),
+            failures=result.failures,
+        )
+        log = {k: v for k, v in result.log.arrays().items()}
+    except WbcBenchError as exc:
+        row.update(status="error", fell=False, message=str(exc), ticks=0, failures=0)
+    except Exception as exc:  # a bug or a library error in one run must not end the sweep
+        last = traceback.format_exception_only(type(exc), exc)[-1].strip()
+        row.update(status="error", fell=False, message=last, ticks=0, failures=0)
+    store.record_scenario(loaded.name, loaded.hash, str(loaded.path))
+    store.add_run(row, metrics, log)
+    return RunRecord(row, metrics, result)

@@ -1,0 +1,241 @@
+"""The ``wbcbench`` command line.
+
+    wbcbench list
+    wbcbench validate SCENARIO...
+    wbcbench run SCENARIO [--controller NAME]... [--solver NAME]... [--out DIR] [--set KEY=VALUE]...
+    wbcbench bench [--out DIR]
+
+Errors a user can cause print one line (``error: …``) and exit with status 2; no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+from tqdm import tqdm
+
+from wbcbench.errors import WbcBenchError
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    from wbcbench.controllers.registry import CONTROLLERS
+    from wbcbench.qp import all_solvers
+    from wbcbench.robots.loader import available_robots
+    from wbcbench.scenarios.load import available_scenarios
+
+    print("controllers:")
+    for name, cls in sorted(CONTROLLERS.items()):
+        print(f"  {name:<12} {cls.summary}")
+    print("solvers:")
+    for info in all_solvers():
+        state = "available" if info["available"] else f"missing ({info.get('reason', '')})"
+        print(f"  {info['name']:<20} {info.get('version') or '-':<12} {state}")
+    print("robots:")
+    for name in available_robots():
+        print(f"  {name}")
+    print("scenarios:")
+    for name in available_scenarios():
+        print(f"  {name}")
+    return 0
+
+
+def _load_checked(names: Sequence[str], overrides: Sequence[str] = ()) -> list:
+    from wbcbench.robots.loader import load_robot
+    from wbcbench.scenarios.load import check_against_robot, load_scenario
+
+    out = []
+    for name in names:
+        loaded = load_scenario(name, list(overrides))
+        robot = load_robot(loaded.spec.robot, base_dir=loaded.path.parent)
+        check_against_robot(loaded, robot)
+        out.append(loaded)
+    return out
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    for loaded in _load_checked(args.scenarios, args.set):
+        spec = loaded.spec
+        print(
+            f"ok  {loaded.path}  ({spec.robot}, {len(spec.tasks)} tasks, "
+            f"{len(spec.contacts)} contacts, {spec.duration:g} s, hash {loaded.hash})"
+        )
+    return 0
+
+
+def _check_names(controllers: Sequence[str], solvers: Sequence[str], tier: str, mode: str) -> None:
+    """Look every name up before the first simulation step."""
+    from wbcbench.controllers.registry import controller_class
+    from wbcbench.qp import make_solver
+
+    for c in controllers:
+        controller_class(c)
+    for s in solvers:
+        make_solver(s, tier=tier, mode=mode)
+
+
+def _run_matrix(
+    scenarios: list,
+    controllers: Sequence[str],
+    solvers: Sequence[str],
+    tier: str,
+    mode: str,
+    out: Path,
+    show_progress: bool,
+) -> pd.DataFrame:
+    from wbcbench.bench.results import ResultsStore
+    from wbcbench.bench.runner import execute
+    from wbcbench.sim.closed_loop import RunSettings
+
+    store = ResultsStore(out)
+    combos = [(sc, c, s) for sc in scenarios for c in controllers for s in solvers]
+    for i, (loaded, controller, solver) in enumerate(combos, 1):
+        settings = RunSettings(controller=controller, solver=solver, tier=tier, mode=mode)
+        label = f"[{i}/{len(combos)}] {loaded.name} · {controller} · {solver}"
+        n_ticks = round(loaded.spec.duration * loaded.spec.control_rate)
+        with tqdm(
+            total=n_ticks, desc=label, unit="tick", disable=not show_progress, leave=False
+        ) as bar:
+
+            def progress(done: int, total: int, bar: tqdm = bar) -> None:
+                if done % 100 == 0 or done == total:
+                    bar.n = done
+                    bar.refresh()
+
+            record = execute(loaded, settings, store, progress=progress)
+        if record is None:
+            print(f"{label}: already in {out}, skipped")
+        else:
+            row = record.row
+            note = f" — {row['message']}" if row.get("message") else ""
+            print(f"{label}: {row['status']}{note}")
+    return summary_table(store.runs(), store.metrics())
+
+
+def summary_table(runs: pd.DataFrame, metrics: pd.DataFrame) -> pd.DataFrame:
+    """One line per run: status, each task's mean error, median step and solve times."""
+    if runs.empty:
+        return runs
+    table = runs[["run_id", "scenario", "controller", "solver", "status", "fell"]].copy()
+    if not metrics.empty:
+        err = metrics[metrics["metric"].isin(["err_mean"])]
+        err = err.assign(col=err["task"] + " [" + err["unit"] + "]")
+        wide = err.pivot_table(index="run_id", columns="col", values="value", aggfunc="first")
+        times = metrics[metrics["metric"].isin(["t_total_median_us", "t_solve_median_us"])]
+        times = times[times["task"] == "*"]
+        wide_t = times.pivot_table(index="run_id", columns="metric", values="value")
+        table = table.join(wide, on="run_id").join(wide_t, on="run_id")
+    return table.drop(columns=["run_id"])
+
+
+def _print_table(table: pd.DataFrame) -> None:
+    if table.empty:
+        print("(no runs)")
+        return
+    with pd.option_context("display.width", 200, "display.max_columns", 50):
+        print(table.to_string(index=False, float_format=lambda x: f"{x:.4g}"))
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from wbcbench.qp import available_solvers
+
+    controllers = args.controller or ["qp_wbc"]
+    solvers = args.solver or [available_solvers()[0]]
+    _check_names(controllers, solvers, args.tier, args.mode)
+    scenarios = _load_checked([args.scenario], args.set)
+    out = Path(args.out)
+    table = _run_matrix(
+        scenarios, controllers, solvers, args.tier, args.mode, out, not args.no_progress
+    )
+    table = table[table["scenario"] == scenarios[0].name]
+    _print_table(table)
+    print(f"results in {out}/ (runs.csv, metrics.csv, logs/, provenance.json)")
+    return 0 if (table["status"] == "ok").all() else 1
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from wbcbench.controllers.registry import available_controllers
+    from wbcbench.qp import available_solvers
+    from wbcbench.scenarios.load import available_scenarios
+
+    scenarios = _load_checked(args.scenario or available_scenarios())
+    controllers = args.controller or available_controllers()
+    solvers = args.solver or available_solvers()
+    _check_names(controllers, solvers, args.tier, args.mode)
+    out = Path(args.out)
+    table = _run_matrix(
+        scenarios, controllers, solvers, args.tier, args.mode, out, not args.no_progress
+    )
+    _print_table(table)
+    summary = out / "summary.md"
+    summary.write_text(
+        "# wbcbench results\n\n"
+        "Closed-loop runs: one row per scenario × controller × solver. Errors are the mean "
+        "tracking-error norms over each scenario's metric window; times are medians over the run "
+        "in microseconds (see provenance.json for the machine).\n\n"
+        + table.to_markdown(index=False, floatfmt=".4g")
+        + "\n"
+    )
+    print(f"results in {out}/ (summary.md, runs.csv, metrics.csv, logs/, provenance.json)")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="wbcbench", description="Benchmark humanoid whole-body controllers and QP solvers."
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    sub.add_parser("list", help="controllers, solvers, robots and scenarios").set_defaults(
+        func=_cmd_list
+    )
+
+    p = sub.add_parser("validate", help="validate scenario files against the schema and robot")
+    p.add_argument("scenarios", nargs="+", metavar="SCENARIO")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    p.set_defaults(func=_cmd_validate)
+
+    def run_options(p: argparse.ArgumentParser, out_default: str) -> None:
+        p.add_argument("--controller", action="append", metavar="NAME")
+        p.add_argument("--solver", action="append", metavar="NAME")
+        p.add_argument("--tier", default="default", help="accuracy tier: default, low, mid, high")
+        p.add_argument("--mode", default="cold", help="solver mode: cold, warm, hot")
+        p.add_argument("--out", default=out_default, metavar="DIR")
+        p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    p = sub.add_parser("run", help="closed-loop runs of one scenario")
+    p.add_argument("scenario", metavar="SCENARIO")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field by its dotted path (validated like the file)",
+    )
+    run_options(p, "results/run")
+    p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("bench", help="every scenario × controller × installed solver")
+    p.add_argument("--scenario", action="append", metavar="NAME")
+    run_options(p, "results")
+    p.set_defaults(func=_cmd_bench)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except WbcBenchError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted: finished runs are saved; rerun to resume", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

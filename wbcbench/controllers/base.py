@@ -1,0 +1,166 @@
+"""What every controller plugin receives and returns.
+
+A controller is built once per run from a :class:`ControllerContext` (robot, tasks, contacts,
+limits and the solver choice) and its own validated config, then called once per control tick
+with a fresh :class:`~wbcbench.dynamics.state.RobotState`. It never calls a QP library: it builds
+:class:`wbcbench.qp.Problem` objects and solves them through the solver handles the context gives
+(one handle per QP it solves, so hot / warm modes keep their state per level).
+"""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from wbcbench.dynamics.state import RobotState
+from wbcbench.qp import Problem, Solution, make_solver
+from wbcbench.robots.loader import Robot
+from wbcbench.tasks.contacts import PlaneContact
+from wbcbench.tasks.tasks import Task, TaskTerm
+
+
+class ControllerConfig(BaseModel):
+    """Base of every controller's settings: unknown keys are errors."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+@dataclass
+class ControllerContext:
+    """Everything a controller may use besides its own settings.
+
+    Attributes:
+        robot: the loaded robot.
+        tasks: started-or-not tasks, in priority order (1 first).
+        contacts: the plane contacts to hold.
+        tau_max: torque limits after scenario overrides (k,) [N·m].
+        solver, tier, mode: the QP backend and its accuracy tier and mode.
+        dt: control period [s].
+        keep_problems: keep every QP of the last step in ``ControlOutput.problems`` (for dumps).
+    """
+
+    robot: Robot
+    tasks: list[Task]
+    contacts: list[PlaneContact]
+    tau_max: np.ndarray
+    solver: str = "proxqp"
+    tier: str = "default"
+    mode: str = "cold"
+    dt: float = 1e-3
+    keep_problems: bool = False
+
+    @property
+    def contact_frames(self) -> list[str]:
+        return [c.frame for c in self.contacts]
+
+    def new_solver(self) -> Any:
+        """A fresh solver handle for one QP of the controller (one per hierarchy level)."""
+        return make_solver(self.solver, tier=self.tier, mode=self.mode)
+
+
+@dataclass
+class ControlOutput:
+    """One control tick's result.
+
+    Attributes:
+        tau: joint torques (k,) [N·m], Pinocchio actuated order.
+        qdd: the joint acceleration the controller predicts (n,).
+        wrench: the stacked contact wrenches it predicts (6c,), reaction on the robot.
+        terms: the evaluated tasks (errors for the logs).
+        timings: seconds per stage: ``dynamics``, ``build``, ``solve`` (wall time of the native
+            solver calls), ``solve_internal`` (solver-reported, NaN if none), ``total``; and per
+            level ``solve.<level>``.
+        ok: every QP solved.
+        message: failure message when not ok.
+        iterations: total solver iterations (NaN if unreported).
+        diagnostics: controller-specific scalars (amendments, residuals, ...).
+        problems: the QPs of this step when the context asks to keep them.
+    """
+
+    tau: np.ndarray
+    qdd: np.ndarray
+    wrench: np.ndarray
+    terms: list[TaskTerm]
+    timings: dict[str, float]
+    ok: bool = True
+    message: str = ""
+    iterations: float = float("nan")
+    diagnostics: dict[str, float] = field(default_factory=dict)
+    problems: list[Problem] = field(default_factory=list)
+
+
+class StageTimer:
+    """Splits a step's wall time into dynamics / build / solve.
+
+    ``dynamics`` is what the RobotState spent in Pinocchio during the step (its quantities are
+    lazy, so they are computed wherever the controller first asks for them); ``solve`` is the
+    solver-measured wall time of the native calls; ``build`` is the rest.
+    """
+
+    def __init__(self, state: RobotState) -> None:
+        self.state = state
+        self._t0 = time.perf_counter()
+        self._dyn0 = state.compute_time
+        self.solve = 0.0
+        self.solve_internal = 0.0
+        self.internal_known = True
+        self.levels: dict[str, float] = {}
+        self.iterations = 0.0
+
+    def add_solution(self, sol: Solution, level: str | None = None) -> None:
+        self.solve += sol.wall_time
+        if sol.internal_time is None:
+            self.internal_known = False
+        else:
+            self.solve_internal += sol.internal_time
+        if sol.iterations is not None:
+            self.iterations += sol.iterations
+        if level is not None:
+            self.levels[f"solve.{level}"] = self.levels.get(f"solve.{level}", 0.0) + sol.wall_time
+
+    def finish(self) -> dict[str, float]:
+        total = time.perf_counter() - self._t0
+        dynamics = self.state.compute_time - self._dyn0
+        out = {
+            "dynamics": dynamics,
+            "build": max(0.0, total - dynamics - self.solve),
+            "solve": self.solve,
+            "solve_internal": self.solve_internal if self.internal_known else float("nan"),
+            "total": total,
+        }
+        out.update(self.levels)
+        return out
+
+
+class Controller(ABC):
+    """Base class of controller plugins.
+
+    Subclasses set ``name``, ``Config`` (a :class:`ControllerConfig`) and ``summary``, and
+    implement :meth:`step`. ``applies_to`` may reject scenarios the formulation cannot handle
+    (e.g. a kinematic controller on a torque scenario) with a reason.
+    """
+
+    name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
+    Config: ClassVar[type[ControllerConfig]] = ControllerConfig
+
+    def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
+        self.ctx = ctx
+        self.config = config if config is not None else self.Config()
+
+    def start(self, state: RobotState) -> None:
+        """Called once with the initial state: fixes the tasks' initial values."""
+        for task in self.ctx.tasks:
+            task.start(state)
+
+    @abstractmethod
+    def step(self, state: RobotState, t: float) -> ControlOutput:
+        """Compute the torque for this tick."""
+
+    def evaluate_tasks(self, state: RobotState, t: float) -> list[TaskTerm]:
+        return [task.evaluate(state, t) for task in self.ctx.tasks]

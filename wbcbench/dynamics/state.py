@@ -1,0 +1,303 @@
+"""RobotState: every dynamics quantity a controller needs, computed once per control tick.
+
+Conventions (the whole project uses them):
+
+* Pinocchio configuration ``q`` (nq = 7 + k) and velocity ``v`` (n = 6 + k); the base linear
+  velocity ``v[0:3]`` is expressed in the base frame.
+* Contact wrenches are the **reaction on the robot**: ``M q̈ + h = Sᵀ Γ + J_cᵀ f``. The papers
+  write ``A q̈ + h + J_cᵀ F_c = Sᵀ Γ`` with ``F_c = −f`` (the wrench the robot exerts); convert
+  only where paper numbers are compared.
+* Task Jacobians of frames are expressed in LOCAL_WORLD_ALIGNED (world axes at the frame
+  origin), so ``J q̈ + J̇ q̇`` is the world-frame linear acceleration of the point and the
+  world-frame angular acceleration.
+* Contact Jacobians are expressed in the contact frame (LOCAL), and their drift ``J̇ q̇`` is the
+  frame's spatial acceleration at zero ``q̈``: a contact holds when that 6-vector is zero.
+
+Quantities are computed lazily and cached; the time spent in Pinocchio is accumulated in
+``RobotState.compute_time`` so controllers can report a ``dynamics`` stage separately from
+formulating and solving their QPs.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+if TYPE_CHECKING:
+    from wbcbench.robots.loader import Robot
+
+LOCAL = pin.ReferenceFrame.LOCAL
+LOCAL_WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+def _symmetrize_upper(a: np.ndarray) -> np.ndarray:
+    """Pinocchio fills only the upper triangle of M and M⁻¹."""
+    return np.triu(a) + np.triu(a, 1).T
+
+
+@dataclass
+class RobotState:
+    """Dynamics of one robot at one (q, v), computed on demand and cached.
+
+    Build one per control tick with :meth:`from_pin` (or :meth:`from_mujoco`); never reuse it for
+    another state. Every array returned is owned by the state (do not modify it in place).
+    """
+
+    robot: Robot
+    q: np.ndarray
+    v: np.ndarray
+    data_buffer: pin.Data | None = field(default=None, repr=False)
+    compute_time: float = 0.0
+    _data: pin.Data = field(init=False, repr=False)
+    _cache: dict[object, np.ndarray] = field(init=False, repr=False, default_factory=dict)
+    _terms_done: bool = field(init=False, default=False, repr=False)
+    _drift_done: bool = field(init=False, default=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.q = np.ascontiguousarray(self.q, dtype=float)
+        self.v = np.ascontiguousarray(self.v, dtype=float)
+        # A runner may lend one Data for the whole run (allocating one costs tens of µs);
+        # states that live side by side (tests, oracles) each get their own.
+        self._data = self.data_buffer if self.data_buffer is not None else self.model.createData()
+
+    # -- construction -------------------------------------------------------------------------
+
+    @classmethod
+    def from_pin(
+        cls, robot: Robot, q: np.ndarray, v: np.ndarray, data: pin.Data | None = None
+    ) -> RobotState:
+        return cls(robot, q, v, data)
+
+    @classmethod
+    def from_mujoco(
+        cls, robot: Robot, qpos: np.ndarray, qvel: np.ndarray, data: pin.Data | None = None
+    ) -> RobotState:
+        from wbcbench.robots.convert import mj_to_pin
+
+        q, v = mj_to_pin(robot, qpos, qvel)
+        return cls(robot, q, v, data)
+
+    # -- sizes --------------------------------------------------------------------------------
+
+    @property
+    def n(self) -> int:
+        """Number of generalized velocities (6 + k)."""
+        return int(self.robot.nv)
+
+    @property
+    def k(self) -> int:
+        """Number of actuated joints."""
+        return int(self.robot.k)
+
+    @property
+    def model(self) -> pin.Model:
+        return self.robot.pin_model
+
+    @property
+    def data(self) -> pin.Data:
+        """Pinocchio data after :meth:`_terms` (and drift passes when they were requested)."""
+        self._terms()
+        return self._data
+
+    # -- the Pinocchio passes -----------------------------------------------------------------
+
+    def _terms(self) -> None:
+        """One pass: kinematics, M, nonlinear effects, gravity, Jacobians, CoM, CMM."""
+        if self._terms_done:
+            return
+        t0 = time.perf_counter()
+        pin.computeAllTerms(self.model, self._data, self.q, self.v)
+        pin.updateFramePlacements(self.model, self._data)
+        self._terms_done = True
+        self.compute_time += time.perf_counter() - t0
+
+    def _drifts(self) -> None:
+        """Second-order kinematics at zero q̈: the J̇ q̇ of every frame and of the CoM."""
+        if self._drift_done:
+            return
+        self._terms()
+        t0 = time.perf_counter()
+        a0 = np.zeros(self.n)
+        # centerOfMass with an acceleration runs second-order forward kinematics (data.a) and
+        # gives the CoM acceleration at zero q̈ in one pass.
+        pin.centerOfMass(self.model, self._data, self.q, self.v, a0, False)
+        self._drift_done = True
+        self.compute_time += time.perf_counter() - t0
+
+    def _cached(self, key: object, compute: object) -> np.ndarray:
+        value = self._cache.get(key)
+        if value is None:
+            t0 = time.perf_counter()
+            value = compute()  # type: ignore[operator]
+            self.compute_time += time.perf_counter() - t0
+            self._cache[key] = value
+        return value
+
+    # -- joint-space dynamics -----------------------------------------------------------------
+
+    @property
+    def M(self) -> np.ndarray:
+        """Joint-space inertia matrix (n, n), armature included."""
+        self._terms()
+        return self._cached("M", lambda: _symmetrize_upper(self._data.M))
+
+    @property
+    def Minv(self) -> np.ndarray:
+        """Inverse inertia matrix (n, n), from Pinocchio's ABA-based routine."""
+        self._terms()
+
+        def compute() -> np.ndarray:
+            pin.computeMinverse(self.model, self._data, self.q)
+            return _symmetrize_upper(self._data.Minv)
+
+        return self._cached("Minv", compute)
+
+    @property
+    def h(self) -> np.ndarray:
+        """Nonlinear effects C(q, v) v + g(q), (n,) [N, N·m]."""
+        self._terms()
+        return self._cached("h", lambda: self._data.nle.copy())
+
+    @property
+    def g(self) -> np.ndarray:
+        """Generalized gravity (n,) [N, N·m]."""
+        self._terms()
+        return self._cached("g", lambda: self._data.g.copy())
+
+    @property
+    def S(self) -> np.ndarray:
+        """Actuation selection (k, n): [0 I_k]."""
+        return self._cached("S", lambda: np.hstack([np.zeros((self.k, 6)), np.eye(self.k)]))
+
+    # -- centre of mass and centroidal momentum -----------------------------------------------
+
+    @property
+    def com(self) -> np.ndarray:
+        """CoM position in the world (3,) [m]."""
+        self._terms()
+        return self._cached("com", lambda: self._data.com[0].copy())
+
+    @property
+    def com_velocity(self) -> np.ndarray:
+        """CoM velocity in the world (3,) [m/s]."""
+        return self._cached("vcom", lambda: self.J_com @ self.v)
+
+    @property
+    def J_com(self) -> np.ndarray:
+        """CoM Jacobian (3, n)."""
+        self._terms()
+        return self._cached("Jcom", lambda: self._data.Jcom.copy())
+
+    @property
+    def com_drift(self) -> np.ndarray:
+        """CoM acceleration at zero q̈, J̇_com q̇ (3,) [m/s²]."""
+        self._drifts()
+        return self._cached("acom", lambda: self._data.acom[0].copy())
+
+    @property
+    def mass(self) -> float:
+        """Total mass [kg]."""
+        self._terms()
+        return float(self._data.mass[0])
+
+    @property
+    def cmm(self) -> np.ndarray:
+        """Centroidal momentum matrix A_G (6, n): [linear; angular] momentum about the CoM."""
+        self._terms()
+        return self._cached("Ag", lambda: self._data.Ag.copy())
+
+    @property
+    def cmm_drift(self) -> np.ndarray:
+        """Rate of centroidal momentum at zero q̈, Ȧ_G q̇ (6,)."""
+        self._terms()
+
+        def compute() -> np.ndarray:
+            pin.computeCentroidalMomentumTimeVariation(
+                self.model, self._data, self.q, self.v, np.zeros(self.n)
+            )
+            return np.asarray(self._data.dhg.np).copy()
+
+        return self._cached("dhg", compute)
+
+    # -- frames ---------------------------------------------------------------------------------
+
+    def frame_id(self, frame: str | int) -> int:
+        return frame if isinstance(frame, int) else self.robot.frame_id(frame)
+
+    def placement(self, frame: str | int) -> pin.SE3:
+        """World placement of a frame."""
+        self._terms()
+        return self._data.oMf[self.frame_id(frame)]
+
+    def position(self, frame: str | int) -> np.ndarray:
+        """World position of a frame origin (3,) [m]."""
+        return self.placement(frame).translation
+
+    def rotation(self, frame: str | int) -> np.ndarray:
+        """World rotation of a frame (3, 3)."""
+        return self.placement(frame).rotation
+
+    def jacobian(self, frame: str | int, local: bool = False) -> np.ndarray:
+        """Frame Jacobian (6, n): [linear; angular], LOCAL_WORLD_ALIGNED unless ``local``."""
+        fid = self.frame_id(frame)
+        self._terms()
+        ref = LOCAL if local else LOCAL_WORLD_ALIGNED
+        return self._cached(
+            ("J", fid, local),
+            lambda: pin.getFrameJacobian(self.model, self._data, fid, ref),
+        )
+
+    def velocity(self, frame: str | int, local: bool = False) -> np.ndarray:
+        """Frame spatial velocity (6,): [linear; angular], same frames as :meth:`jacobian`."""
+        return self.jacobian(frame, local) @ self.v
+
+    def drift(self, frame: str | int, local: bool = False) -> np.ndarray:
+        """J̇ q̇ of a frame (6,).
+
+        World-aligned: the classical acceleration at zero q̈ (the second derivative of the
+        point's world position, and the angular acceleration). Local: the spatial acceleration
+        at zero q̈ in the frame (what must vanish for a rigid contact).
+        """
+        fid = self.frame_id(frame)
+        self._drifts()
+
+        def compute() -> np.ndarray:
+            if local:
+                acc = pin.getFrameAcceleration(self.model, self._data, fid, LOCAL)
+            else:
+                acc = pin.getFrameClassicalAcceleration(
+                    self.model, self._data, fid, LOCAL_WORLD_ALIGNED
+                )
+            return np.asarray(acc.vector).copy()
+
+        return self._cached(("dJv", fid, local), compute)
+
+    # -- stacked contact quantities -------------------------------------------------------------
+
+    def contact_jacobian(self, frames: tuple[str, ...] | list[str]) -> np.ndarray:
+        """Stacked LOCAL Jacobians of plane contacts (6c, n)."""
+        key = ("Jc", tuple(frames))
+        if key in self._cache:
+            return self._cache[key]
+        if not frames:
+            value = np.zeros((0, self.n))
+        else:
+            value = np.vstack([self.jacobian(f, local=True) for f in frames])
+        self._cache[key] = value
+        return value
+
+    def contact_drift(self, frames: tuple[str, ...] | list[str]) -> np.ndarray:
+        """Stacked J̇_c q̇ of plane contacts (6c,)."""
+        key = ("dJcv", tuple(frames))
+        if key in self._cache:
+            return self._cache[key]
+        if not frames:
+            value = np.zeros(0)
+        else:
+            value = np.concatenate([self.drift(f, local=True) for f in frames])
+        self._cache[key] = value
+        return value

@@ -1,0 +1,95 @@
+"""Metrics of one closed-loop run, in long form: (task, metric, value, unit).
+
+* tracking: per task and error part, ``err_mean`` / ``err_max`` (``err_rot_mean`` … for the
+  orientation part of pose tasks) over the scenario's window, and ``err_final``;
+* constraints: torque-limit excess (commanded), friction / CoP / normal-force violations of the
+  predicted (commanded) and simulated wrenches, each the maximum over the run;
+* failures: failed control ticks;
+* timing: per stage ``t_<stage>_median_us`` and friends, after the warm-up ticks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wbcbench.metrics.timing import timing_stats
+from wbcbench.sim.closed_loop import RunResult
+from wbcbench.tasks.contacts import PlaneContact
+from wbcbench.tasks.tasks import ERROR_UNITS
+
+WRENCH = ("fx", "fy", "fz", "mx", "my", "mz")
+
+
+@dataclass
+class MetricRow:
+    task: str
+    metric: str
+    value: float
+    unit: str
+
+
+def _metric_name(part: str, stat: str, parts: list[str]) -> str:
+    """err_mean for a task's main part; err_rot_mean for the orientation of a pose task."""
+    if part == "rot" and "pos" in parts:
+        return f"err_rot_{stat}"
+    return f"err_{stat}"
+
+
+def run_metrics(
+    result: RunResult,
+    contacts: list[PlaneContact],
+    window: tuple[float, float] | None,
+    warmup: int,
+) -> list[MetricRow]:
+    cols = result.log.arrays()
+    rows: list[MetricRow] = []
+    if not cols:
+        return rows
+    t = cols["t"]
+    mask = np.ones_like(t, dtype=bool) if window is None else (t >= window[0]) & (t <= window[1])
+    for task, parts in result.task_parts.items():
+        for part in parts:
+            series = cols[f"err.{task}.{part}"]
+            unit = ERROR_UNITS[part]
+            w = series[mask]
+            for stat, value in (
+                ("mean", float(np.mean(w)) if w.size else np.nan),
+                ("max", float(np.max(w)) if w.size else np.nan),
+                ("final", float(series[-1])),
+            ):
+                rows.append(MetricRow(task, _metric_name(part, stat, parts), value, unit))
+
+    taus = np.column_stack([cols[f"tau.{j}"] for j in result.robot.joint_names])
+    excess = np.max(np.abs(taus) - result.tau_max[None, :])
+    rows.append(MetricRow("*", "torque_limit_excess", max(0.0, float(excess)), "N·m"))
+    for source in ("pred", "sim"):
+        worst = {"normal": 0.0, "friction": 0.0, "cop": 0.0, "yaw": 0.0}
+        for contact in contacts:
+            w6 = np.column_stack([cols[f"wrench_{source}.{contact.frame}.{c}"] for c in WRENCH])
+            for wrench in w6:
+                if not np.all(np.isfinite(wrench)):
+                    continue
+                for key, value in contact.violation(wrench).items():
+                    worst[key] = max(worst[key], value)
+        units = {"normal": "N", "friction": "-", "cop": "m", "yaw": "m"}
+        for key, value in worst.items():
+            rows.append(MetricRow("*", f"{key}_violation_{source}", value, units[key]))
+    rows.append(MetricRow("*", "solve_failures", float(result.failures), "ticks"))
+
+    for stage in ("dynamics", "build", "solve", "solve_internal", "total"):
+        key = f"time.{stage}"
+        if key not in cols:
+            continue
+        stats = timing_stats(cols[key][warmup:])
+        for name, value in stats.items():
+            unit = "-" if name == "miss_rate" else "us"
+            metric = f"t_{stage}_{name}" if name != "miss_rate" else f"t_{stage}_miss_rate"
+            rows.append(MetricRow("*", metric, value, unit))
+    for key in cols:
+        if key.startswith("time.solve."):
+            level = key.removeprefix("time.solve.")
+            stats = timing_stats(cols[key][warmup:])
+            rows.append(MetricRow(level, "t_solve_median_us", stats["median_us"], "us"))
+    return rows

@@ -1,0 +1,282 @@
+"""The scenario file schema (version 1).
+
+Defaults live here; a scenario file holds only what differs. Every model forbids unknown keys.
+Checks that need the robot (frame and joint names, keyframes) happen in
+:mod:`wbcbench.scenarios.load` after the robot is loaded, still before any simulation step.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+Vector = list[float]
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# -- reference trajectories ---------------------------------------------------------------------
+
+
+class ConstantRef(Strict):
+    """Hold a value: the initial one (``value`` omitted) or an offset / absolute target."""
+
+    type: Literal["constant"]
+    value: Vector | None = None
+
+
+class SinusoidRef(Strict):
+    """x = a sin(2π f (t − t0) + φ) − a sin φ from t0 on (offset from the initial value)."""
+
+    type: Literal["sinusoid"]
+    amplitude: Vector
+    frequency: float = Field(gt=0, description="[Hz]")
+    t0: float = 0.0
+    phase: float = 0.0
+
+
+class SplineThereAndBackRef(Strict):
+    """C² cubic move over [t0, t1]: 0 → +a → −a → 0 (``symmetric``) or 0 → a → 0."""
+
+    type: Literal["spline_there_and_back"]
+    t0: float
+    t1: float
+    amplitude: Vector
+    symmetric: bool = True
+
+    @model_validator(mode="after")
+    def _times(self) -> SplineThereAndBackRef:
+        if not self.t1 > self.t0:
+            raise ValueError(f"t1 ({self.t1}) must be greater than t0 ({self.t0})")
+        return self
+
+
+class MinJerkRef(Strict):
+    """Minimum-jerk move by ``delta`` over [t0, t1], held afterwards."""
+
+    type: Literal["min_jerk"]
+    t0: float
+    t1: float
+    delta: Vector
+
+    @model_validator(mode="after")
+    def _times(self) -> MinJerkRef:
+        if not self.t1 > self.t0:
+            raise ValueError(f"t1 ({self.t1}) must be greater than t0 ({self.t0})")
+        return self
+
+
+class PiecewiseRef(Strict):
+    """Waypoints ``values[i]`` at ``times[i]``, joined by cubic, linear or minimum-jerk pieces."""
+
+    type: Literal["piecewise"]
+    times: Vector
+    values: list[Vector]
+    interpolation: Literal["cubic", "linear", "min_jerk"] = "cubic"
+
+    @model_validator(mode="after")
+    def _shape(self) -> PiecewiseRef:
+        if len(self.times) < 2:
+            raise ValueError("needs at least two waypoints")
+        if any(b <= a for a, b in zip(self.times, self.times[1:], strict=False)):
+            raise ValueError(f"times must be strictly increasing, got {self.times}")
+        if len(self.values) != len(self.times):
+            raise ValueError(
+                f"{len(self.values)} values for {len(self.times)} times: give one per time"
+            )
+        if len({len(v) for v in self.values}) != 1:
+            raise ValueError("every waypoint must have the same number of values")
+        return self
+
+
+Reference = Annotated[
+    ConstantRef | SinusoidRef | SplineThereAndBackRef | MinJerkRef | PiecewiseRef,
+    Field(discriminator="type"),
+]
+
+REFERENCE_DIM_FIELD = {
+    "constant": "value",
+    "sinusoid": "amplitude",
+    "spline_there_and_back": "amplitude",
+    "min_jerk": "delta",
+}
+
+
+# -- tasks and contacts -----------------------------------------------------------------------------
+
+TaskType = Literal[
+    "com", "frame_position", "frame_orientation", "frame_pose", "joint_posture", "joint_damping"
+]
+
+AXES_BY_TYPE: dict[str, tuple[str, ...]] = {
+    "com": ("x", "y", "z"),
+    "frame_position": ("x", "y", "z"),
+    "frame_orientation": ("rx", "ry", "rz"),
+    "frame_pose": ("x", "y", "z", "rx", "ry", "rz"),
+}
+FRAME_TASKS = ("frame_position", "frame_orientation", "frame_pose")
+JOINT_TASKS = ("joint_posture", "joint_damping")
+
+
+class TaskSpec(Strict):
+    """One task. ``priority`` 1 is the highest."""
+
+    name: str
+    type: TaskType
+    frame: str | None = None
+    axes: list[str] | None = None
+    joints: list[str] | None = None
+    priority: int = Field(1, ge=1)
+    weight: float | None = Field(None, gt=0)
+    kp: float | Vector = 100.0
+    kv: float | Vector = 20.0
+    reference: Reference | None = None
+    absolute: bool = False
+    level: Literal["acceleration", "force"] = "acceleration"
+
+    @model_validator(mode="after")
+    def _consistent(self) -> TaskSpec:
+        if self.type in FRAME_TASKS and not self.frame:
+            raise ValueError(f"a {self.type} task needs 'frame'")
+        if self.type not in FRAME_TASKS and self.frame is not None:
+            raise ValueError(f"a {self.type} task takes no 'frame'")
+        if self.type not in JOINT_TASKS and self.joints is not None:
+            raise ValueError(f"a {self.type} task takes no 'joints' (only joint tasks do)")
+        valid_axes = AXES_BY_TYPE.get(self.type)
+        if self.axes is not None:
+            if valid_axes is None:
+                raise ValueError(f"a {self.type} task takes no 'axes'; use 'joints'")
+            bad = [a for a in self.axes if a not in valid_axes]
+            if bad or len(set(self.axes)) != len(self.axes) or not self.axes:
+                raise ValueError(
+                    f"axes {self.axes} invalid for {self.type}; valid choices: "
+                    f"{', '.join(valid_axes)} (each at most once)"
+                )
+        return self
+
+    @property
+    def selected_axes(self) -> tuple[str, ...]:
+        if self.axes is not None:
+            return tuple(self.axes)
+        return AXES_BY_TYPE.get(self.type, ())
+
+
+class CopBox(Strict):
+    """Centre-of-pressure box in the contact frame [m]."""
+
+    x: tuple[float, float]
+    y: tuple[float, float]
+
+    @field_validator("x", "y")
+    @classmethod
+    def _ordered(cls, v: tuple[float, float]) -> tuple[float, float]:
+        if not v[0] < v[1]:
+            raise ValueError(f"[min, max] with min < max, got {list(v)}")
+        return v
+
+
+class ContactSpec(Strict):
+    """A plane contact held by a robot frame (reaction-on-robot convention: fmin > 0)."""
+
+    frame: str
+    mu: float = Field(0.5, gt=0)
+    fmin: float = Field(30.0, ge=0, description="minimum normal force [N]")
+    fmax: float | None = Field(None, gt=0)
+    facets: int = Field(4, ge=3)
+    mu_yaw: float | None = Field(None, gt=0)
+    cop: CopBox | None = None
+
+
+class LimitsSpec(Strict):
+    """Torque-limit overrides: ``torque`` maps joint names (or fnmatch patterns) to [N·m]."""
+
+    torque_scale: float = Field(1.0, gt=0)
+    torque: dict[str, float] = Field(default_factory=dict)
+
+    @field_validator("torque")
+    @classmethod
+    def _positive(cls, v: dict[str, float]) -> dict[str, float]:
+        for name, value in v.items():
+            if value <= 0:
+                raise ValueError(f"torque limit of {name!r} must be > 0, got {value}")
+        return v
+
+
+class SimSpec(Strict):
+    """MuJoCo settings of closed-loop runs."""
+
+    timestep: float = Field(0.0005, gt=0, le=0.002, description="physics step [s]")
+    integrator: Literal["implicitfast", "implicit", "Euler", "RK4"] = "implicitfast"
+    joint_friction: bool = Field(
+        True, description="simulate the model's joint damping and Coulomb friction"
+    )
+    friction_compensation: bool = Field(
+        True, description="add the model's viscous + Coulomb friction to the commanded torque"
+    )
+    fall_height: float = Field(
+        0.6, gt=0, lt=1, description="fall when the base drops below this fraction of its start"
+    )
+    contact_slip: float = Field(
+        0.02, gt=0, description="fall when a held contact frame moves more than this [m]"
+    )
+    max_consecutive_failures: int = Field(
+        20, ge=1, description="stop the run after this many failed control ticks in a row"
+    )
+
+
+class InitialSpec(Strict):
+    keyframe: str = "stand"
+
+
+class MetricsSpec(Strict):
+    """Tracking metrics are averaged over ``window`` [s] (whole run when omitted)."""
+
+    window: tuple[float, float] | None = None
+    timing_warmup: int = Field(50, ge=0, description="control ticks discarded from timing stats")
+
+
+class Scenario(Strict):
+    """A declarative benchmark scenario."""
+
+    version: Literal[1]
+    name: str = ""
+    description: str = ""
+    reproduces: str | None = Field(None, description="the paper table / figure it reproduces")
+    reconstruction: str | None = Field(
+        None, description="how lost details of the paper's set-up were reconstructed"
+    )
+    robot: str
+    initial: InitialSpec = Field(default_factory=InitialSpec)
+    duration: float = Field(gt=0, description="[s]")
+    control_rate: float = Field(1000.0, gt=0, description="[Hz]")
+    contacts: list[ContactSpec] = Field(default_factory=list)
+    tasks: list[TaskSpec] = Field(min_length=1)
+    limits: LimitsSpec = Field(default_factory=LimitsSpec)
+    sim: SimSpec = Field(default_factory=SimSpec)
+    controllers: dict[str, dict[str, Any]] = Field(
+        default_factory=dict, description="per-controller settings, validated by each controller"
+    )
+    metrics: MetricsSpec = Field(default_factory=MetricsSpec)
+
+    @model_validator(mode="after")
+    def _unique_names(self) -> Scenario:
+        names = [t.name for t in self.tasks]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"task names must be unique; repeated: {', '.join(dup)}")
+        frames = [c.frame for c in self.contacts]
+        dupc = sorted({f for f in frames if frames.count(f) > 1})
+        if dupc:
+            raise ValueError(f"a frame may hold one contact; repeated: {', '.join(dupc)}")
+        if self.metrics.window is not None:
+            t0, t1 = self.metrics.window
+            if not 0 <= t0 < t1:
+                raise ValueError(f"metrics.window must satisfy 0 ≤ t0 < t1, got {[t0, t1]}")
+        return self
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.control_rate

@@ -1,0 +1,305 @@
+"""Closed-loop runs: a controller drives the robot in MuJoCo.
+
+Each control tick (``control_rate``, 1 kHz by default) the runner reads (qpos, qvel), converts
+them to Pinocchio's convention, builds one :class:`RobotState`, asks the controller for torques,
+applies them through the motors (zero-order hold) and advances the physics by
+``control_period / sim.timestep`` steps.
+
+Solver failures: the documented fallback is to **hold the previous tick's torque** and count the
+failure; after ``sim.max_consecutive_failures`` failed ticks in a row the run stops with status
+``failed``. A run stops with status ``fell`` when the base drops below ``sim.fall_height`` of its
+initial height, or a held contact frame slips more than ``sim.contact_slip`` or carries no load
+for 50 ms.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from wbcbench.controllers.base import ControllerContext, ControlOutput
+from wbcbench.controllers.registry import make_controller
+from wbcbench.dynamics.state import RobotState
+from wbcbench.robots.convert import mj_to_pin, torque_to_ctrl
+from wbcbench.robots.loader import Robot, load_robot
+from wbcbench.scenarios.load import (
+    LoadedScenario,
+    build_contacts,
+    build_tasks,
+    check_against_robot,
+    controller_settings,
+    torque_limits,
+)
+
+STAGES = ("dynamics", "build", "solve", "solve_internal", "total")
+LOST_CONTACT_TICKS = 50
+
+
+@dataclass
+class RunSettings:
+    """What varies between runs of one scenario."""
+
+    controller: str = "qp_wbc"
+    solver: str = "proxqp"
+    tier: str = "default"
+    mode: str = "cold"
+    controller_config: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class RunLog:
+    """Per-tick arrays of one run (rows = control ticks that were executed)."""
+
+    columns: dict[str, list[float]] = field(default_factory=dict)
+
+    def add(self, row: dict[str, float]) -> None:
+        for key, value in row.items():
+            self.columns.setdefault(key, []).append(value)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: np.asarray(v, dtype=float) for k, v in self.columns.items()}
+
+
+@dataclass
+class RunResult:
+    status: str  # ok | fell | failed
+    message: str
+    log: RunLog
+    ticks: int
+    failures: int
+    wall_time: float
+    robot: Robot
+    contact_frames: list[str]
+    tau_max: np.ndarray
+    task_parts: dict[str, list[str]]
+
+    @property
+    def fell(self) -> bool:
+        return self.status == "fell"
+
+
+class ContactSensor:
+    """Contact wrenches MuJoCo applies on the bodies that carry the robot's contact frames.
+
+    Returned per frame as [f; m] in the contact frame, moments about its origin, reaction on the
+    robot (the same convention as the controllers' predicted wrench).
+    """
+
+    def __init__(self, model: mujoco.MjModel, robot: Robot, frames: list[str]) -> None:
+        self.model = model
+        self.frames = frames
+        self._site_or_body: list[tuple[str, int]] = []
+        self.bodies: list[int] = []
+        for f in frames:
+            sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f)
+            if sid >= 0:
+                self._site_or_body.append(("site", sid))
+                self.bodies.append(int(model.site_bodyid[sid]))
+            else:
+                bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f)
+                self._site_or_body.append(("body", bid))
+                self.bodies.append(bid)
+        self._f6 = np.zeros(6)
+
+    def frame_pose(self, data: mujoco.MjData, i: int) -> tuple[np.ndarray, np.ndarray]:
+        kind, idx = self._site_or_body[i]
+        if kind == "site":
+            return data.site_xpos[idx].copy(), data.site_xmat[idx].reshape(3, 3).copy()
+        return data.xpos[idx].copy(), data.xmat[idx].reshape(3, 3).copy()
+
+    def wrenches(self, data: mujoco.MjData) -> np.ndarray:
+        """Stacked wrenches (6 × frames,)."""
+        out = np.zeros(6 * len(self.frames))
+        if not self.frames:
+            return out
+        geom_body = self.model.geom_bodyid
+        poses = [self.frame_pose(data, i) for i in range(len(self.frames))]
+        for ci in range(data.ncon):
+            con = data.contact[ci]
+            b1, b2 = geom_body[con.geom1], geom_body[con.geom2]
+            for i, body in enumerate(self.bodies):
+                if body not in (b1, b2):
+                    continue
+                mujoco.mj_contactForce(self.model, data, ci, self._f6)
+                frame = con.frame.reshape(3, 3)  # rows: normal, tangent1, tangent2
+                force = frame.T @ self._f6[:3]  # on geom2, world axes
+                torque = frame.T @ self._f6[3:]
+                if body == b1:
+                    force, torque = -force, -torque
+                p, R = poses[i]
+                moment = torque + np.cross(con.pos - p, force)
+                out[6 * i : 6 * i + 3] += R.T @ force
+                out[6 * i + 3 : 6 * i + 6] += R.T @ moment
+        return out
+
+
+def prepare_model(robot: Robot, loaded: LoadedScenario) -> mujoco.MjModel:
+    """A copy of the robot's MuJoCo model with the scenario's simulation settings applied."""
+    sim = loaded.spec.sim
+    model = robot.fresh_mj_model()
+    model.opt.timestep = sim.timestep
+    model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{sim.integrator.upper()}")
+    if not sim.joint_friction:
+        model.dof_frictionloss[:] = 0.0
+        model.dof_damping[:] = 0.0
+    # the scenario's torque limits are the motors' limits too
+    tau = torque_limits(loaded.spec, robot)
+    act = robot.actuator_ids
+    model.actuator_ctrlrange[act, 0] = -tau
+    model.actuator_ctrlrange[act, 1] = tau
+    return model
+
+
+def friction_torque(robot: Robot, model: mujoco.MjModel, qd: np.ndarray) -> np.ndarray:
+    """The model's viscous + Coulomb joint friction at joint velocity qd (k,) [N·m].
+
+    The sign of the Coulomb term is smoothed over 0.01 rad/s so the compensation does not chatter
+    around zero velocity.
+    """
+    dof = robot.mj_dof_adr
+    return model.dof_damping[dof] * qd + model.dof_frictionloss[dof] * np.tanh(qd / 0.01)
+
+
+def run_closed_loop(
+    loaded: LoadedScenario,
+    settings: RunSettings,
+    robot: Robot | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    on_step: Callable[[RobotState, ControlOutput], None] | None = None,
+) -> RunResult:
+    """Simulate one scenario with one controller and solver; never raises for a failed QP."""
+    spec = loaded.spec
+    robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
+    check_against_robot(loaded, robot)
+    model = prepare_model(robot, loaded)
+    data = mujoco.MjData(model)
+    q0, v0 = robot.keyframe(spec.initial.keyframe)
+    qpos, qvel = robot.pin_to_mj(q0, v0)
+    data.qpos[:] = qpos
+    data.qvel[:] = qvel
+    mujoco.mj_forward(model, data)
+
+    tasks = build_tasks(spec, robot)
+    contacts = build_contacts(spec, robot)
+    tau_max = torque_limits(spec, robot)
+    ctx = ControllerContext(
+        robot=robot,
+        tasks=tasks,
+        contacts=contacts,
+        tau_max=tau_max,
+        solver=settings.solver,
+        tier=settings.tier,
+        mode=settings.mode,
+        dt=spec.dt,
+    )
+    cfg = {**controller_settings(loaded, settings.controller), **settings.controller_config}
+    controller = make_controller(settings.controller, ctx, cfg)
+
+    frames = [c.frame for c in contacts]
+    sensor = ContactSensor(model, robot, frames)
+    substeps = max(1, round(spec.dt / model.opt.timestep))
+    n_ticks = round(spec.duration * spec.control_rate)
+    base_z0 = float(data.qpos[2])
+    contact_p0 = [sensor.frame_pose(data, i)[0] for i in range(len(frames))]
+    unloaded = np.zeros(len(frames), dtype=int)
+    pin_data = robot.pin_model.createData()
+    log = RunLog()
+    task_parts: dict[str, list[str]] = {}
+    last_tau = np.zeros(robot.k)
+    failures = consecutive = 0
+    status, message = "ok", ""
+    compensate = spec.sim.friction_compensation and spec.sim.joint_friction
+    wall0 = time.perf_counter()
+    tick = 0
+    for tick in range(n_ticks):
+        t = tick * spec.dt
+        q, v = mj_to_pin(robot, data.qpos, data.qvel)
+        state = RobotState(robot, q, v, pin_data)
+        if tick == 0:
+            controller.start(state)
+        out = controller.step(state, t)
+        if on_step is not None:
+            on_step(state, out)
+        if out.ok:
+            tau = out.tau
+            consecutive = 0
+        else:
+            failures += 1
+            consecutive += 1
+            tau = last_tau
+            if consecutive >= spec.sim.max_consecutive_failures:
+                status, message = "failed", f"{consecutive} failed ticks in a row: {out.message}"
+        last_tau = tau
+        applied = tau + friction_torque(robot, model, v[6:]) if compensate else tau
+        data.ctrl[:] = torque_to_ctrl(robot, applied)
+        for _ in range(substeps):
+            mujoco.mj_step(model, data)
+
+        row: dict[str, float] = {"t": t, "ok": float(out.ok), "iterations": out.iterations}
+        for stage, value in out.timings.items():
+            row[f"time.{stage}"] = value
+        for term in out.terms:
+            norms = term.task.error_norms(term)
+            task_parts.setdefault(term.task.name, list(norms))
+            for part, value in norms.items():
+                row[f"err.{term.task.name}.{part}"] = value
+        for j, name in enumerate(robot.joint_names):
+            row[f"tau.{name}"] = tau[j]
+        sim_w = sensor.wrenches(data)
+        for i, f in enumerate(frames):
+            for c, comp in enumerate(("fx", "fy", "fz", "mx", "my", "mz")):
+                row[f"wrench_pred.{f}.{comp}"] = out.wrench[6 * i + c] if out.ok else np.nan
+                row[f"wrench_sim.{f}.{comp}"] = sim_w[6 * i + c]
+        row["base_z"] = float(data.qpos[2])
+        row["com.x"], row["com.y"], row["com.z"] = (float(x) for x in state.com)
+        for name, value in out.diagnostics.items():
+            row[f"diag.{name}"] = value
+        log.add(row)
+        if progress is not None:
+            progress(tick + 1, n_ticks)
+        if status != "ok":
+            break
+
+        if data.qpos[2] < spec.sim.fall_height * base_z0:
+            status, message = "fell", f"base height {data.qpos[2]:.3f} m at t = {t:.3f} s"
+            break
+        lost = _lost_contact(sensor, data, contact_p0, sim_w, unloaded, spec.sim.contact_slip)
+        if lost:
+            status, message = "fell", f"{lost} at t = {t:.3f} s"
+            break
+
+    return RunResult(
+        status=status,
+        message=message,
+        log=log,
+        ticks=tick + 1,
+        failures=failures,
+        wall_time=time.perf_counter() - wall0,
+        robot=robot,
+        contact_frames=frames,
+        tau_max=tau_max,
+        task_parts=task_parts,
+    )
+
+
+def _lost_contact(
+    sensor: ContactSensor,
+    data: mujoco.MjData,
+    p0: list[np.ndarray],
+    wrench: np.ndarray,
+    unloaded: np.ndarray,
+    slip: float,
+) -> str:
+    for i, frame in enumerate(sensor.frames):
+        p, _ = sensor.frame_pose(data, i)
+        if np.linalg.norm(p - p0[i]) > slip:
+            return f"contact {frame!r} moved {1e3 * np.linalg.norm(p - p0[i]):.1f} mm"
+        unloaded[i] = unloaded[i] + 1 if wrench[6 * i + 2] <= 1e-6 else 0
+        if unloaded[i] >= LOST_CONTACT_TICKS:
+            return f"contact {frame!r} carried no load for {LOST_CONTACT_TICKS} ticks"
+    return ""
