@@ -1,0 +1,76 @@
+"""Conversions several backends share: one-sided row splits and fixed sparsity patterns."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from wbcbench.qp.settings import TIER_EPS
+
+Array = NDArray[np.float64]
+Mask = NDArray[np.bool_]
+Index = NDArray[np.intp]
+
+
+def tier_eps(tier: str) -> float | None:
+    """Absolute tolerance of ``tier``, ``None`` for ``default``."""
+    return TIER_EPS.get(tier)
+
+
+def split_rows(C: Array, lower: Array, upper: Array) -> tuple[Array, Array, Index, Index]:
+    """Rewrite ``lower ≤ C x ≤ upper`` as ``G x ≤ h`` keeping finite sides only.
+
+    Returns:
+        ``(G, h, up, lo)``: ``G = [C[up]; −C[lo]]``, ``h = [upper[up]; −lower[lo]]`` where
+        ``up`` and ``lo`` index the rows with a finite upper and lower side.
+    """
+    up = np.flatnonzero(np.isfinite(upper))
+    lo = np.flatnonzero(np.isfinite(lower))
+    G = np.vstack([C[up], -C[lo]])
+    h = np.concatenate([upper[up], -lower[lo]])
+    return G, h, up, lo
+
+
+def merge_split_duals(zG: Array, up: Index, lo: Index, m: int) -> Array:
+    """Duals ``(m,)`` of ``l ≤ Cx ≤ u`` from the ``G x ≤ h`` duals of :func:`split_rows`."""
+    z = np.zeros(m)
+    z[up] += zG[: up.size]
+    z[lo] -= zG[up.size : up.size + lo.size]
+    return z
+
+
+def pattern_csc(M: Array, mask: Mask) -> sp.csc_matrix:
+    """CSC matrix of ``M`` whose stored entries are exactly ``mask`` (explicit zeros kept)."""
+    m, n = M.shape
+    rows = np.nonzero(mask.T)[1]
+    data = M.T[mask.T]
+    indptr = np.concatenate([[0], np.cumsum(mask.sum(axis=0))])
+    return sp.csc_matrix((data, rows, indptr), shape=(m, n))
+
+
+def pattern_values(M: Array, mask: Mask) -> Array:
+    """Values of ``M`` on ``mask`` in CSC order (column by column, rows ascending)."""
+    return np.ascontiguousarray(M.T[mask.T])
+
+
+def fits(M: Array, mask: Mask) -> bool:
+    """True when every nonzero of ``M`` lies on ``mask``."""
+    return not bool(np.any((M != 0.0) & ~mask))
+
+
+def upper_mask(H: Array) -> Mask:
+    """Nonzeros of ``triu(H)`` plus the whole diagonal (sparse solvers expect a stored one)."""
+    mask = np.triu(H != 0.0)
+    np.fill_diagonal(mask, True)
+    return mask
+
+
+def apply_settings(target: Any, options: dict[str, Any], library: str) -> None:
+    """Set ``options`` as attributes of a native settings object, rejecting unknown names."""
+    for key, value in options.items():
+        if not hasattr(target, key):
+            raise ValueError(f"{library} has no setting {key!r}")
+        setattr(target, key, value)

@@ -1,0 +1,165 @@
+"""DAQP: dual active-set solver for dense QPs.
+
+Native form: ``min ½xᵀHx + fᵀx s.t. blower ≤ [I; A_daqp] x ≤ bupper`` where, when the problem
+has a box, the first ``n`` entries of the bounds are the simple bounds ``lb, ub`` and
+``A_daqp = [A; C]``; equality rows are flagged with sense 5 (``l = u = b``). DAQP's multipliers
+``lam`` already follow the shared sign convention (positive on an active upper side).
+
+H must be positive definite for DAQP's plain iterations. Since WBC Hessians are often only
+semidefinite, this backend sets ``eps_prox = -1`` (DAQP's automatic choice: proximal-point
+outer iterations only when ``H`` is singular, which converge to the unregularised optimum)
+unless ``eps_prox`` is given.
+
+The :class:`daqp.Model` API is used in all modes. Warm start: ``setup(..., primal_start)`` on a
+fresh model (DAQP derives the initial active set from the guess). Hot: the model is kept and
+``update`` sends the changed data;
+DAQP starts from the previous active set. Internal time: DAQP's ``solve_time`` (covers the
+solve call; its setup is timed separately). Tiers (as qpbenchmark): ``primal_tol`` and
+``dual_tol`` set to the tier's tolerance.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import daqp as _daqp
+import numpy as np
+
+from wbcbench.qp.backends._common import tier_eps
+from wbcbench.qp.base import Guess, QPSolver
+from wbcbench.qp.problem import Array, Problem
+from wbcbench.qp.solution import Solution, SolutionStatus
+
+LIBRARY = "daqp"
+
+EQUALITY_SENSE = 5
+
+_STATUS = {
+    1: SolutionStatus.SOLVED,
+    2: SolutionStatus.SOLVED,  # soft-constraint optimum
+    -1: SolutionStatus.INFEASIBLE,
+    -3: SolutionStatus.INFEASIBLE,  # unbounded
+    -4: SolutionStatus.MAX_ITER,
+    -2: SolutionStatus.NUMERICAL,  # cycling
+    -5: SolutionStatus.NUMERICAL,  # non-convex
+    -6: SolutionStatus.NUMERICAL,  # overdetermined initial active set
+}
+_FLAG_TEXT = {
+    1: "optimal",
+    2: "soft optimal",
+    -1: "primal infeasible",
+    -2: "cycling detected",
+    -3: "unbounded",
+    -4: "iteration limit",
+    -5: "non-convex problem",
+    -6: "overdetermined initial active set",
+}
+
+
+def _data(problem: Problem) -> tuple[Array, Array, Array, Any]:
+    """``(A_daqp, bupper, blower, sense)``."""
+    M = np.vstack([problem.A, problem.C])
+    hi, lo = [problem.b, problem.u], [problem.b, problem.l]
+    sense = [np.full(problem.n_eq, EQUALITY_SENSE), np.zeros(problem.n_in)]
+    if problem.has_box:
+        lb, ub = problem.box()
+        hi.insert(0, ub)
+        lo.insert(0, lb)
+        sense.insert(0, np.zeros(problem.n))
+    return M, np.concatenate(hi), np.concatenate(lo), np.concatenate(sense).astype(np.int32)
+
+
+class DAQPSolver(QPSolver):
+    """DAQP; see the module docstring."""
+
+    name = "daqp"
+    warm_start = True
+    hot_start = True
+    internal_time_covers = "solve"
+
+    @staticmethod
+    def tier_settings(tier: str) -> dict[str, Any]:
+        eps = tier_eps(tier)
+        return {} if eps is None else {"primal_tol": eps, "dual_tol": eps}
+
+    def _solve_fresh(self, problem: Problem, guess: Guess | None, keep: bool) -> Solution:
+        t0 = time.perf_counter()
+        M, hi, lo, sense = _data(problem)
+        model = _daqp.Model()
+        model.settings = {"eps_prox": -1.0, **self.options}
+        kwargs: dict[str, Any] = {}
+        if guess is not None:
+            # Primal only: DAQP 0.11 given the duals of a different problem as dual_start can
+            # return NaNs flagged optimal; from x it derives the active set itself.
+            kwargs["primal_start"] = guess.x
+        flag, _ = model.setup(problem.H, problem.g, M, hi, lo, sense, **kwargs)
+        t1 = time.perf_counter()
+        if flag < 0:
+            return Solution(
+                status=_STATUS.get(flag, SolutionStatus.FAILED),
+                setup_time=t1 - t0,
+                message=f"setup failed: {_FLAG_TEXT.get(flag, flag)}",
+            )
+        out = model.solve()
+        t2 = time.perf_counter()
+        self._native = model if keep else None
+        return self._result(out, problem, t1 - t0, t2 - t1)
+
+    def _solve_update(
+        self, problem: Problem, guess: Guess | None, changed: frozenset[str]
+    ) -> Solution:
+        model = self._native
+        t0 = time.perf_counter()
+        kwargs: dict[str, Any] = {}
+        if "H" in changed:
+            kwargs["H"] = problem.H
+        if "g" in changed:
+            kwargs["f"] = problem.g
+        if changed - {"H", "g"}:
+            M, hi, lo, _ = _data(problem)
+            if changed & {"A", "C"}:
+                kwargs["A"] = M
+            kwargs["bupper"], kwargs["blower"] = hi, lo
+        flag = model.update(**kwargs) if kwargs else 0
+        t1 = time.perf_counter()
+        if flag < 0:
+            self._native = None
+            return Solution(
+                status=_STATUS.get(flag, SolutionStatus.FAILED),
+                setup_time=t1 - t0,
+                message=f"update failed: {_FLAG_TEXT.get(flag, flag)}",
+            )
+        out = model.solve()
+        t2 = time.perf_counter()
+        sol = self._result(out, problem, t1 - t0, t2 - t1)
+        if sol.success and sol.x is not None and not np.all(np.isfinite(sol.x)):
+            # DAQP 0.11 can return NaNs flagged optimal when a hot update follows a very
+            # different problem (seen with proximal iterations): rebuild once, say so.
+            retry = self._solve_fresh(problem, guess, keep=True)
+            retry.rebuilt = True
+            retry.wall_time += sol.wall_time
+            retry.setup_time += sol.setup_time
+            retry.message = f"{retry.message}; rebuilt after a non-finite hot result"
+            return retry
+        return sol
+
+    @staticmethod
+    def _result(out: Any, problem: Problem, setup: float, wall: float) -> Solution:
+        x, _, flag, info = out
+        status = _STATUS.get(int(flag), SolutionStatus.FAILED)
+        has_x = status in (SolutionStatus.SOLVED, SolutionStatus.MAX_ITER)
+        lam = np.array(info["lam"]) if has_x else None
+        k = problem.n if problem.has_box else 0
+        return Solution(
+            status=status,
+            x=np.array(x) if has_x else None,
+            y=None if lam is None else lam[k : k + problem.n_eq],
+            z=None if lam is None else lam[k + problem.n_eq :],
+            z_box=None if lam is None or not problem.has_box else lam[:k],
+            iterations=int(info["iterations"]),
+            wall_time=wall,
+            setup_time=setup,
+            internal_time=float(info["solve_time"]),
+            message=_FLAG_TEXT.get(int(flag), f"exitflag {flag}"),
+        )

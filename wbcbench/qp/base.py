@@ -1,0 +1,208 @@
+"""The stateful solver handle every backend implements.
+
+A :class:`QPSolver` is created by :func:`wbcbench.qp.registry.make_solver`, typically one per
+controller level, and called once per control tick. It keeps the previous solution (for
+``warm``) and the native solver object (for ``hot``). Backends implement two hooks:
+
+* :meth:`QPSolver._solve_fresh` — build a native object for ``problem``, solve, return a
+  :class:`Solution`; it keeps the object in ``self._native`` when ``keep`` is true so that
+* :meth:`QPSolver._solve_update` — update the kept object with what changed and solve —
+  can be used on the next call (``hot`` only).
+
+Timing is measured by the backend, around native calls only (see :class:`Solution`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from wbcbench.errors import SolverError
+from wbcbench.qp.problem import Problem
+from wbcbench.qp.settings import check_mode, check_tier, effective_mode
+from wbcbench.qp.solution import Solution, SolutionStatus
+
+Array = NDArray[np.float64]
+
+#: Fields of a :class:`Problem` an in-place update may change.
+DATA_FIELDS: tuple[str, ...] = ("H", "g", "A", "b", "C", "l", "u", "lb", "ub")
+
+
+@dataclass
+class Guess:
+    """An initial guess: primal ``x`` ``(n,)`` and, when known, duals in the shared convention."""
+
+    x: Array
+    y: Array | None = None
+    z: Array | None = None
+    z_box: Array | None = None
+
+
+class QPSolver:
+    """Base class of every backend handle (one module per backend in ``qp/backends``).
+
+    Class attributes a backend sets:
+        name: registry name.
+        warm_start: the native API accepts an initial guess on a fresh object.
+        hot_start: the native object can be kept and updated in place.
+        internal_time_covers: what the solver's own timer covers, ``""`` if it has none.
+    """
+
+    name: ClassVar[str] = ""
+    warm_start: ClassVar[bool] = False
+    hot_start: ClassVar[bool] = False
+    internal_time_covers: ClassVar[str] = ""
+
+    def __init__(self, tier: str = "default", mode: str = "cold", **options: Any) -> None:
+        """Create a handle.
+
+        Args:
+            tier: accuracy tier (see :mod:`wbcbench.qp.settings`).
+            mode: requested mode; ``self.mode`` holds the effective one.
+            **options: native settings overriding the tier's (names as in the library).
+        """
+        self.tier = check_tier(tier)
+        self.requested_mode = check_mode(mode)
+        self.mode = effective_mode(mode, self.warm_start, self.hot_start)
+        self.options: dict[str, Any] = {**self.tier_settings(tier), **options}
+        self.previous: Solution | None = None
+        self.builds = 0  # native objects built by _solve_fresh with keep=True
+        self._native: Any = None
+        self._native_key: Hashable = None
+        self._last: dict[str, Array | None] = {}
+
+    # ---- backend hooks -------------------------------------------------------------------
+    @staticmethod
+    def tier_settings(tier: str) -> dict[str, Any]:
+        """Native settings realising ``tier`` for this backend (empty for ``default``)."""
+        return {}
+
+    def _solve_fresh(self, problem: Problem, guess: Guess | None, keep: bool) -> Solution:
+        raise NotImplementedError
+
+    def _solve_update(
+        self, problem: Problem, guess: Guess | None, changed: frozenset[str]
+    ) -> Solution:
+        raise NotImplementedError
+
+    def _native_signature(self, problem: Problem) -> Hashable:
+        """What must be equal for an in-place update; backends may add to the structure key."""
+        return problem.structure_key()
+
+    def _can_update(self, problem: Problem) -> bool:
+        """Extra per-call test for an in-place update (e.g. a sparsity pattern still fits)."""
+        return True
+
+    # ---- public --------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget the previous solution and the native object."""
+        self.previous = None
+        self._native = None
+        self._native_key = None
+        self._last = {}
+
+    def solve(
+        self, problem: Problem, x0: Array | None = None, raise_on_failure: bool = False
+    ) -> Solution:
+        """Solve ``problem``.
+
+        Args:
+            problem: the QP.
+            x0: explicit primal initial guess ``(n,)``; passed to the solver in any mode when
+                its API accepts one. Without it, ``warm`` and ``hot`` reuse the previous
+                solution.
+            raise_on_failure: raise :class:`SolverError` (carrying the problem) instead of
+                returning a non-``solved`` Solution.
+
+        Returns:
+            The Solution. A backend exception is returned as status ``failed`` with the
+            exception text as message, so a benchmark sweep goes on.
+        """
+        try:
+            problem.validate()
+            guess = self._guess(problem, x0)
+            if self.mode == "hot":
+                sol = self._solve_hot(problem, guess, explicit=x0 is not None)
+            else:
+                sol = self._solve_fresh(problem, guess, keep=False)
+        except Exception as exc:  # a failed row, never a crashed sweep
+            self._native = None
+            sol = Solution(status=SolutionStatus.FAILED, message=f"{type(exc).__name__}: {exc}")
+        if sol.success and (sol.x is None or not np.all(np.isfinite(sol.x))):
+            sol.status = SolutionStatus.NUMERICAL
+            sol.message = f"reported {sol.message or 'solved'} without a finite x"
+        sol.solver = self.name
+        sol.mode = self.mode
+        sol.tier = self.tier
+        if sol.x is not None and np.isnan(sol.objective):
+            sol.objective = problem.objective(sol.x)
+        if sol.internal_time is not None and not sol.internal_time_covers:
+            sol.internal_time_covers = self.internal_time_covers
+        if sol.success and sol.x is not None:
+            self.previous = sol
+        if raise_on_failure and not sol.success:
+            raise SolverError(
+                f"{self.name} ({self.mode}, tier {self.tier}) returned {sol.status}"
+                + (f": {sol.message}" if sol.message else ""),
+                problem=problem,
+                solver=self.name,
+            )
+        return sol
+
+    # ---- internals -----------------------------------------------------------------------
+    def _guess(self, problem: Problem, x0: Array | None) -> Guess | None:
+        if x0 is not None:
+            x = np.asarray(x0, dtype=np.float64)
+            if x.shape != (problem.n,):
+                raise SolverError(
+                    f"x0 has shape {x.shape}, expected ({problem.n},)",
+                    problem=problem,
+                    solver=self.name,
+                )
+            return Guess(x=x)
+        prev = self.previous
+        if self.mode == "cold" or prev is None or prev.x is None or prev.x.shape != (problem.n,):
+            return None
+        return Guess(
+            x=prev.x,
+            y=prev.y if prev.y is not None and prev.y.shape == (problem.n_eq,) else None,
+            z=prev.z if prev.z is not None and prev.z.shape == (problem.n_in,) else None,
+            z_box=prev.z_box if prev.z_box is not None and problem.has_box else None,
+        )
+
+    def _solve_hot(self, problem: Problem, guess: Guess | None, explicit: bool) -> Solution:
+        key = self._native_signature(problem)
+        if self._native is not None and key == self._native_key and self._can_update(problem):
+            # The native object already holds the previous iterate: pass only an explicit x0.
+            sol = self._solve_update(problem, guess if explicit else None, self._changed(problem))
+        else:
+            self._native = None
+            sol = self._solve_fresh(problem, guess, keep=True)
+            sol.rebuilt = True
+            self.builds += 1
+            self._native_key = key
+        self._remember(problem)
+        return sol
+
+    def _changed(self, problem: Problem) -> frozenset[str]:
+        out = []
+        for key in DATA_FIELDS:
+            new = getattr(problem, key)
+            old = self._last.get(key)
+            if new is None or old is None:
+                if new is not old:
+                    out.append(key)
+            elif not np.array_equal(new, old):
+                out.append(key)
+        return frozenset(out)
+
+    def _remember(self, problem: Problem) -> None:
+        # Copies, because a controller may refill preallocated arrays in place.
+        self._last = {
+            key: None if getattr(problem, key) is None else np.array(getattr(problem, key))
+            for key in DATA_FIELDS
+        }

@@ -1,0 +1,178 @@
+"""The one table of QP backends: name → module, import-guarded.
+
+Adding a backend: write ``wbcbench/qp/backends/<name>.py`` with a :class:`QPSolver` subclass,
+add one line to :data:`BACKENDS`, and the registry sweep in ``tests/test_qp_backends.py`` picks
+it up. Names are looked up here before any backend is imported, so an error inside a backend is
+never mistaken for "no such solver".
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+from dataclasses import dataclass
+from functools import cache
+from typing import Any, TypedDict
+
+from wbcbench.errors import UnknownNameError
+from wbcbench.qp.base import QPSolver
+from wbcbench.qp.settings import check_mode, check_tier
+
+
+@dataclass(frozen=True)
+class BackendEntry:
+    """One registry row: where the class lives and which distribution provides the library."""
+
+    module: str
+    cls: str
+    distribution: str
+
+
+#: name → backend. Every entry uses the library's native API.
+BACKENDS: dict[str, BackendEntry] = {
+    "clarabel": BackendEntry("wbcbench.qp.backends.clarabel", "ClarabelSolver", "clarabel"),
+    "daqp": BackendEntry("wbcbench.qp.backends.daqp", "DAQPSolver", "daqp"),
+    "highs": BackendEntry("wbcbench.qp.backends.highs", "HiGHSSolver", "highspy"),
+    "osqp": BackendEntry("wbcbench.qp.backends.osqp", "OSQPSolver", "osqp"),
+    "piqp": BackendEntry("wbcbench.qp.backends.piqp", "PIQPSolver", "piqp"),
+    "proxqp": BackendEntry("wbcbench.qp.backends.proxqp", "ProxQPSolver", "proxsuite"),
+    "qpoases": BackendEntry("wbcbench.qp.backends.qpoases", "QpOASESSolver", "casadi"),
+    "quadprog": BackendEntry("wbcbench.qp.backends.quadprog", "QuadprogSolver", "quadprog"),
+}
+
+QPSOLVERS_PREFIX = "qpsolvers:"
+
+#: Backends also offered through qpsolvers as ``qpsolvers:<name>`` (qpsolvers' own names; its
+#: ``qpoases`` is the standalone qpOASES package, not CasADi's).
+QPSOLVERS_NAMES: tuple[str, ...] = (
+    "clarabel",
+    "daqp",
+    "highs",
+    "osqp",
+    "piqp",
+    "proxqp",
+    "qpoases",
+    "quadprog",
+)
+
+UNKNOWN_HINT = "wbcbench.qp.all_solvers() lists every backend with its availability and version"
+
+
+def _all_names() -> list[str]:
+    return sorted([*BACKENDS, *(QPSOLVERS_PREFIX + n for n in QPSOLVERS_NAMES)])
+
+
+@cache
+def _load(name: str) -> type[QPSolver] | None:
+    """The backend class, or ``None`` when its library is not installed."""
+    if name.startswith(QPSOLVERS_PREFIX):
+        inner = name[len(QPSOLVERS_PREFIX) :]
+        try:
+            import qpsolvers
+
+            from wbcbench.qp.backends.qpsolvers_wrapper import make_wrapper
+        except ImportError:
+            return None
+        if inner not in qpsolvers.available_solvers:
+            return None
+        native = _load(inner) if inner in BACKENDS else None
+        return make_wrapper(inner, native.tier_settings if native else lambda tier: {})
+    entry = BACKENDS[name]
+    try:
+        module = importlib.import_module(entry.module)
+    except ImportError:
+        return None
+    cls: type[QPSolver] = getattr(module, entry.cls)
+    return cls
+
+
+def _version(distribution: str) -> str:
+    try:
+        return importlib.metadata.version(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return ""
+
+
+class SolverInfo(TypedDict):
+    """What :func:`all_solvers` reports for one registry name (a plain dict)."""
+
+    name: str
+    available: bool
+    version: str
+    reason: str
+    warm_start: bool
+    hot_start: bool
+    internal_time: str
+
+
+def available_solvers() -> list[str]:
+    """Registry names whose library is installed, sorted."""
+    return [name for name in _all_names() if _load(name) is not None]
+
+
+def all_solvers() -> list[SolverInfo]:
+    """Every registry name with availability, library version and native capabilities.
+
+    Each entry is a :class:`SolverInfo` dict; ``reason`` says why a name is unavailable.
+    ``version`` is the library's distribution version (for ``qpsolvers:<name>``:
+    ``"qpsolvers <v>, <library> <v>"``); capabilities are those of an available backend and
+    ``False``/``""`` otherwise.
+    """
+    out: list[SolverInfo] = []
+    for name in _all_names():
+        cls = _load(name)
+        if name.startswith(QPSOLVERS_PREFIX):
+            inner = name[len(QPSOLVERS_PREFIX) :]
+            dist = BACKENDS[inner].distribution if inner in BACKENDS else inner
+            version = f"qpsolvers {_version('qpsolvers')}, {dist} {_version(dist)}"
+            reason = f"qpsolvers does not offer {inner!r} here"
+        else:
+            version = _version(BACKENDS[name].distribution)
+            reason = f"package {BACKENDS[name].distribution!r} not installed"
+        out.append(
+            SolverInfo(
+                name=name,
+                available=cls is not None,
+                version=version if cls is not None else "",
+                reason="" if cls is not None else reason,
+                warm_start=bool(cls and cls.warm_start),
+                hot_start=bool(cls and cls.hot_start),
+                internal_time=cls.internal_time_covers if cls else "",
+            )
+        )
+    return out
+
+
+def make_solver(name: str, tier: str = "default", mode: str = "cold", **options: Any) -> QPSolver:
+    """A solver handle (one per controller level), e.g. ``make_solver("proxqp", "mid", "hot")``.
+
+    Args:
+        name: registry name (see :func:`available_solvers`).
+        tier: accuracy tier, one of :data:`~wbcbench.qp.settings.TIERS`.
+        mode: ``cold``, ``warm`` or ``hot`` (see :mod:`wbcbench.qp.settings`).
+        **options: native settings overriding the tier's.
+
+    Raises:
+        UnknownNameError: the name is not in the registry or its library is not installed
+            (listing the installed names), or the tier or mode is unknown.
+    """
+    if name not in BACKENDS and not (
+        name.startswith(QPSOLVERS_PREFIX) and name[len(QPSOLVERS_PREFIX) :] in QPSOLVERS_NAMES
+    ):
+        raise UnknownNameError("solver", name, available_solvers(), hint=UNKNOWN_HINT)
+    check_tier(tier)
+    check_mode(mode)
+    cls = _load(name)
+    if cls is None:
+        if name.startswith(QPSOLVERS_PREFIX):
+            missing = "qpsolvers (with this solver)"
+        else:
+            missing = BACKENDS[name].distribution
+        raise UnknownNameError(
+            "solver",
+            name,
+            available_solvers(),
+            hint=f"{name!r} is a known backend but its package is not installed: "
+            f"pip install {missing}",
+        )
+    return cls(tier=tier, mode=mode, **options)
