@@ -6,6 +6,8 @@ construction; the optimum itself is computed by the solvers.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from wbcbench.qp.problem import Problem
@@ -78,8 +80,32 @@ def infeasible_qp(n: int = 4) -> Problem:
     )
 
 
-def wbc_like_qp(seed: int = 0) -> Problem:
+class _DriftingRng:
+    """Random draws ``base + t · perturbation`` from two seeded streams (masks do not drift)."""
+
+    def __init__(self, seed: int, t: float) -> None:
+        self._base = np.random.default_rng(seed)
+        self._pert = np.random.default_rng(seed + 7919)
+        self._t = t
+
+    def standard_normal(self, size: Any) -> np.ndarray:
+        return self._base.standard_normal(size) + self._t * self._pert.standard_normal(size)
+
+    def uniform(self, low: float, high: float, size: Any) -> np.ndarray:
+        # Both terms lie in [low, high]; t ≥ 0 keeps the sum ≥ low.
+        return self._base.uniform(low, high, size) + self._t * self._pert.uniform(low, high, size)
+
+    def random(self, size: Any) -> np.ndarray:
+        self._pert.random(size)  # keep the streams aligned
+        return self._base.random(size)
+
+
+def wbc_like_qp(seed: int = 0, t: float = 0.0) -> Problem:
     """A dense whole-body-control-like QP: 70 variables, 45 equalities, 60 inequalities.
+
+    ``t ≥ 0`` drifts every matrix and vector smoothly from the ``t = 0`` problem while keeping
+    the structure (sizes and which bounds are infinite) and feasibility: consecutive values such
+    as ``t = k · 1e-3`` mimic consecutive control ticks (see :func:`wbc_like_sequence`).
 
     Variables ``x = (q̈, f, τ)`` with ``q̈`` ``(32,)`` [rad/s²], contact wrenches ``f``
     ``(12,)`` [N, N·m] for two feet and joint torques ``τ`` ``(26,)`` [N·m]. Equalities: the
@@ -92,7 +118,7 @@ def wbc_like_qp(seed: int = 0) -> Problem:
     and a centre-of-pressure box (4), one-sided; 42 two-sided joint-acceleration limits, some
     infinite. Bounds: torque limits on ``τ``, none on ``f``, some on ``q̈``.
     """
-    rng = np.random.default_rng(seed)
+    rng = _DriftingRng(seed, t)
     nv, nf, nt = 32, 12, 26
     n = nv + nf + nt
     L = rng.standard_normal((nv, nv)) * 0.3
@@ -185,6 +211,12 @@ def wbc_like_qp(seed: int = 0) -> Problem:
         u=u,
         lb=lb,
         ub=ub,
-        name=f"wbc_like/{seed}",
-        meta={"generator": "wbc_like_qp", "seed": seed},
+        name=f"wbc_like/{seed}" + (f"/t={t:g}" if t else ""),
+        meta={"generator": "wbc_like_qp", "seed": seed, "t": t},
     )
+
+
+def wbc_like_sequence(length: int, seed: int = 0, step: float = 1e-3) -> list[Problem]:
+    """``length`` consecutive "ticks" ``wbc_like_qp(seed, t=k·step)``: same structure, drifting
+    data, as a controller level sees them in a timing run."""
+    return [wbc_like_qp(seed, t=k * step) for k in range(length)]

@@ -16,6 +16,7 @@ none (qpsolvers does not report it uniformly). Tiers: the native backend module'
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -70,9 +71,13 @@ def make_wrapper(inner: str, tier_settings: Callable[[str], dict[str, Any]]) -> 
                 ub=problem.ub,
             )
             initvals = guess.x if guess is not None else None
-            t1 = time.perf_counter()
-            sol = _qpsolvers.solve_problem(qp, solver=inner, initvals=initvals, **self.options)
-            t2 = time.perf_counter()
+            with warnings.catch_warnings():
+                # Status chatter (e.g. "terminated with status PrimalInfeasible"); the status
+                # is in the Solution.
+                warnings.simplefilter("ignore")
+                t1 = time.perf_counter()
+                sol = _qpsolvers.solve_problem(qp, solver=inner, initvals=initvals, **self.options)
+                t2 = time.perf_counter()
             found = bool(sol.found)
             x = np.array(sol.x) if found and sol.x is not None else None
             z = None

@@ -1,0 +1,203 @@
+"""Registry sweep: every installed backend × mode × tier against a high-accuracy reference.
+
+The reference is ProxQP at the ``high`` tier, itself accepted only if the independent KKT check
+(:func:`wbcbench.qp.check_solution`) passes at 1e-8. No timing is asserted here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+import pytest
+
+import wbcbench.qp as qp
+from wbcbench.qp import MODES, TIERS, Problem, SolutionStatus, check_solution, make_solver
+from wbcbench.qp.examples import infeasible_qp, random_qp, wbc_like_qp
+from wbcbench.qp.registry import BACKENDS, QPSOLVERS_NAMES, QPSOLVERS_PREFIX
+from wbcbench.qp.settings import TIER_EPS
+
+ALL_NAMES = sorted([*BACKENDS, *(QPSOLVERS_PREFIX + n for n in QPSOLVERS_NAMES)])
+INSTALLED = set(qp.available_solvers())
+
+
+def _param(name: str) -> Any:
+    reason = next((i["reason"] for i in qp.all_solvers() if i["name"] == name), "")
+    return pytest.param(
+        name, marks=pytest.mark.skipif(name not in INSTALLED, reason=f"{name}: {reason}")
+    )
+
+
+SOLVERS = [_param(n) for n in ALL_NAMES]
+
+#: ‖x − x*‖∞ accepted per tier; ``default`` is each solver's own (loosest: OSQP's 1e-3).
+DISTANCE = {"default": 2e-2, "low": 2e-2, "mid": 1e-4, "high": 1e-6}
+#: HiGHS's QP solver does not tighten with its dual tolerance (and ignores the primal one), so
+#: at ``high`` it stays at its default accuracy.
+DISTANCE_FLOOR = {"highs": 1e-5, "qpsolvers:highs": 1e-5}
+
+PROBLEMS = [
+    random_qp(0, n=8, n_eq=2, n_in=5),
+    random_qp(1, n=12, n_eq=4, n_in=8),
+    random_qp(2, n=10, n_eq=0, n_in=6, box=False),
+    random_qp(3, n=6, n_eq=3, n_in=0),
+    random_qp(4, n=10, n_eq=2, n_in=6, box=False, inf_fraction=0.5),
+]
+
+
+def _reference(p: Problem) -> np.ndarray:
+    sol = make_solver("proxqp", tier="high").solve(p)
+    assert sol.success and sol.x is not None
+    assert check_solution(p, sol, tol=1e-8).ok
+    return sol.x
+
+
+REFERENCES = [_reference(p) for p in PROBLEMS]
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("tier", TIERS)
+def test_random_qps_reach_the_reference(name: str, mode: str, tier: str) -> None:
+    solver = make_solver(name, tier=tier, mode=mode)
+    tol = max(DISTANCE[tier], DISTANCE_FLOOR.get(name, 0.0)) if tier == "high" else DISTANCE[tier]
+    for p, ref in zip(PROBLEMS, REFERENCES, strict=True):
+        for _ in range(2):  # the second call exercises warm / hot paths
+            sol = solver.solve(p)
+            assert sol.status is SolutionStatus.SOLVED, (p.name, sol.message)
+            assert sol.solver == name and sol.tier == tier and sol.mode == solver.mode
+            v = check_solution(p, sol, tol=10 * TIER_EPS.get(tier, 1e-2))
+            assert v.distance_to(ref) <= tol, (p.name, v.distance_to(ref))
+            assert v.primal_residual <= 10 * TIER_EPS.get(tier, 1e-2), (p.name, v)
+            assert sol.wall_time > 0.0 and sol.setup_time >= 0.0
+            assert abs(sol.objective - p.objective(ref)) <= 1e-3 * max(1.0, abs(sol.objective))
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+def test_duals_follow_the_shared_convention(name: str) -> None:
+    p = PROBLEMS[1]
+    sol = make_solver(name, tier="mid").solve(p)
+    v = check_solution(p, sol, tol=1e-5, dual_tol=1e-4)
+    if v.dual_residual is None:  # only wrappers that lack some duals may skip this
+        assert name.startswith(QPSOLVERS_PREFIX)
+        return
+    assert v.ok, v
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+@pytest.mark.parametrize("mode", MODES)
+def test_infeasible_problem_is_reported_not_raised(name: str, mode: str) -> None:
+    solver = make_solver(name, mode=mode)
+    for _ in range(2):
+        sol = solver.solve(infeasible_qp())
+        assert sol.status is not SolutionStatus.SOLVED
+        # PIQP runs into its iteration limit on this problem instead of flagging it.
+        allowed = {SolutionStatus.INFEASIBLE, SolutionStatus.FAILED}
+        if name.endswith("piqp"):
+            allowed.add(SolutionStatus.MAX_ITER)
+        assert sol.status in allowed, (sol.status, sol.message)
+    # The handle is still usable afterwards.
+    assert solver.solve(PROBLEMS[0]).success
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+def test_effective_mode_is_reported(name: str) -> None:
+    for mode in MODES:
+        solver = make_solver(name, mode=mode)
+        expected = qp.settings.effective_mode(mode, solver.warm_start, solver.hot_start)
+        assert solver.mode == expected
+        assert solver.solve(PROBLEMS[0]).mode == expected
+    if not make_solver(name).hot_start:
+        assert make_solver(name, mode="hot").mode != "hot"
+
+
+@pytest.mark.parametrize("name", [n for n in SOLVERS if n.values[0] in BACKENDS])
+def test_hot_mode_updates_in_place_and_rebuilds_on_structure_change(name: str) -> None:
+    solver = make_solver(name, mode="hot")
+    if solver.mode != "hot":
+        pytest.skip(f"{name} has no persistent native object")
+    p = PROBLEMS[1]
+    first = solver.solve(p)
+    assert first.success and first.rebuilt and solver.builds == 1
+    moved = dataclasses.replace(p, g=p.g + 0.05, u=p.u + 0.01)
+    second = solver.solve(moved)
+    assert second.success and not second.rebuilt and solver.builds == 1
+    v = check_solution(moved, second, tol=1e-4)
+    assert v.distance_to(_reference(moved)) <= DISTANCE["default"]
+    other = PROBLEMS[0]  # a different structure
+    assert other.structure_key() != p.structure_key()
+    third = solver.solve(other)
+    assert third.success and third.rebuilt and solver.builds == 2
+    assert check_solution(other, third, tol=1e-2).distance_to(REFERENCES[0]) <= 2e-2
+
+
+@pytest.mark.parametrize("name", [n for n in SOLVERS if n.values[0] in BACKENDS])
+def test_hot_mode_sees_in_place_changes_of_caller_arrays(name: str) -> None:
+    solver = make_solver(name, tier="mid", mode="hot")
+    p = dataclasses.replace(PROBLEMS[1], g=PROBLEMS[1].g.copy())
+    solver.solve(p)
+    p.g += 0.3  # a controller refilling a preallocated array
+    sol = solver.solve(p)
+    assert check_solution(p, sol, 1e-4).distance_to(_reference(p)) <= 1e-3
+
+
+@pytest.mark.parametrize("name", ["proxqp", "osqp", "daqp"])
+def test_warm_mode_passes_the_previous_solution(name: str) -> None:
+    solver = make_solver(name, tier="mid", mode="warm")
+    p = wbc_like_qp()
+    first = solver.solve(p)
+    second = solver.solve(p)
+    assert first.iterations is not None and second.iterations is not None
+    assert second.iterations < first.iterations
+    # An explicit guess is passed in cold mode too.
+    cold = make_solver(name, tier="mid", mode="cold")
+    assert first.x is not None
+    assert (cold.solve(p, x0=first.x).iterations or 0) <= (cold.solve(p).iterations or 0)
+
+
+def test_qpsolvers_wrapper_passes_initvals(monkeypatch: pytest.MonkeyPatch) -> None:
+    if "qpsolvers:proxqp" not in INSTALLED:
+        pytest.skip("qpsolvers with proxqp not installed")
+    import qpsolvers
+
+    seen: list[Any] = []
+    original = qpsolvers.solve_problem
+
+    def spy(problem: Any, solver: str, initvals: Any = None, **kwargs: Any) -> Any:
+        seen.append(initvals)
+        return original(problem, solver=solver, initvals=initvals, **kwargs)
+
+    monkeypatch.setattr(qpsolvers, "solve_problem", spy)
+    solver = make_solver("qpsolvers:proxqp", mode="warm")
+    first = solver.solve(PROBLEMS[0])
+    solver.solve(PROBLEMS[0])
+    assert seen[0] is None
+    assert first.x is not None
+    np.testing.assert_array_equal(seen[1], first.x)
+
+
+WBC = wbc_like_qp()
+WBC_REF = _reference(WBC)
+
+
+@pytest.mark.parametrize("name", SOLVERS)
+@pytest.mark.parametrize("mode", MODES)
+def test_wbc_like_problem(name: str, mode: str) -> None:
+    """70 variables, 45 equalities, 60 inequalities, PSD rank-deficient H."""
+    solver = make_solver(name, tier="mid", mode=mode)
+    if name == "qpsolvers:quadprog":
+        # qpsolvers passes H to quadprog unchanged; quadprog rejects a non-PD Hessian.
+        sol = solver.solve(WBC)
+        assert sol.status is SolutionStatus.FAILED
+        assert "positive definite" in sol.message
+        return
+    for _ in range(2):
+        sol = solver.solve(WBC)
+        assert sol.status is SolutionStatus.SOLVED, sol.message
+        scale = max(1.0, float(np.max(np.abs(WBC_REF))))
+        v = check_solution(WBC, sol, tol=1e-6 * scale)
+        assert v.primal_residual <= 1e-6 * scale, v
+        assert v.distance_to(WBC_REF) <= 1e-6 * scale, v.distance_to(WBC_REF)
+    if name == "quadprog":
+        assert "H not positive definite: solved with H + " in sol.message
