@@ -6,9 +6,11 @@ has a box, the first ``n`` entries of the bounds are the simple bounds ``lb, ub`
 ``lam`` already follow the shared sign convention (positive on an active upper side).
 
 H must be positive definite for DAQP's plain iterations. Since WBC Hessians are often only
-semidefinite, this backend sets ``eps_prox = -1`` (DAQP's automatic choice: proximal-point
-outer iterations only when ``H`` is singular, which converge to the unregularised optimum)
-unless ``eps_prox`` is given.
+semidefinite, this backend sets, unless given: ``eq_reduction = 1`` (eliminate the equality
+constraints first; the reduced Hessian of a well-posed WBC problem is positive definite, and
+on the WBC-like test problem this cuts the iterations from 80 to 26) and ``eps_prox = -1``
+(DAQP's automatic choice: proximal-point outer iterations only when the Hessian it works with
+is singular; they converge to the unregularised optimum).
 
 The :class:`daqp.Model` API is used in all modes. Warm start: ``setup(..., primal_start)`` on a
 fresh model (DAQP derives the initial active set from the guess). Hot: the model is kept and
@@ -87,7 +89,7 @@ class DAQPSolver(QPSolver):
         t0 = time.perf_counter()
         M, hi, lo, sense = _data(problem)
         model = _daqp.Model()
-        model.settings = {"eps_prox": -1.0, **self.options}
+        model.settings = {"eps_prox": -1.0, "eq_reduction": 1, **self.options}
         kwargs: dict[str, Any] = {}
         if guess is not None:
             # Primal only: DAQP 0.11 given the duals of a different problem as dual_start can
