@@ -74,7 +74,7 @@ def test_oracle_100_states(robot: Robot, variables: str) -> None:
 
 @pytest.mark.parametrize("solver", available_solvers())
 def test_oracle_every_backend(tocabi: Robot, solver: str) -> None:
-    controller = make_qp_wbc(tocabi, solver, "high")
+    controller = make_qp_wbc(tocabi, solver, "mid")
     worst = check_against_oracle(tocabi, controller, n_states=10, seed=2)
     assert worst["contact_acc"] <= 1e-6, worst
     assert worst["wrench_rel"] <= 1e-6, worst

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from wbcbench.errors import WbcBenchError
@@ -139,11 +140,24 @@ def _print_table(table: pd.DataFrame) -> None:
         print(table.to_string(index=False, float_format=lambda x: f"{x:.4g}"))
 
 
-def _cmd_run(args: argparse.Namespace) -> int:
+DEFAULT_SOLVER = "proxqp"
+
+
+def native_solvers() -> list[str]:
+    """Installed backends that call their library directly (not through qpsolvers)."""
     from wbcbench.qp import available_solvers
 
+    return [s for s in available_solvers() if ":" not in s]
+
+
+def default_solver() -> str:
+    native = native_solvers()
+    return DEFAULT_SOLVER if DEFAULT_SOLVER in native else native[0]
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
     controllers = args.controller or ["qp_wbc"]
-    solvers = args.solver or [available_solvers()[0]]
+    solvers = args.solver or [default_solver()]
     _check_names(controllers, solvers, args.tier, args.mode)
     scenarios = _load_checked([args.scenario], args.set)
     out = Path(args.out)
@@ -158,12 +172,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     from wbcbench.controllers.registry import available_controllers
-    from wbcbench.qp import available_solvers
     from wbcbench.scenarios.load import available_scenarios
 
     scenarios = _load_checked(args.scenario or available_scenarios())
     controllers = args.controller or available_controllers()
-    solvers = args.solver or available_solvers()
+    solvers = args.solver or native_solvers()
     _check_names(controllers, solvers, args.tier, args.mode)
     out = Path(args.out)
     table = _run_matrix(
@@ -227,6 +240,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    # One BLAS thread: the control loop's matrices are small, and a second BLAS thread on a
+    # 2-core machine turns microsecond operations into millisecond spikes.
+    threadpool_limits(1)
     try:
         return int(args.func(args))
     except WbcBenchError as exc:

@@ -72,9 +72,10 @@ class ControlOutput:
         qdd: the joint acceleration the controller predicts (n,).
         wrench: the stacked contact wrenches it predicts (6c,), reaction on the robot.
         terms: the evaluated tasks (errors for the logs).
-        timings: seconds per stage: ``dynamics``, ``build``, ``solve`` (wall time of the native
-            solver calls), ``solve_internal`` (solver-reported, NaN if none), ``total``; and per
-            level ``solve.<level>``.
+        timings: seconds per stage: ``dynamics``, ``build``, ``solve`` (wall time of the solver
+            library: building or updating its object, ``solve_setup``, plus the native solve
+            calls), ``solve_internal`` (solver-reported, NaN if none), ``total``; and per level
+            ``solve.<level>``.
         ok: every QP solved.
         message: failure message when not ok.
         iterations: total solver iterations (NaN if unreported).
@@ -99,7 +100,8 @@ class StageTimer:
 
     ``dynamics`` is what the RobotState spent in Pinocchio during the step (its quantities are
     lazy, so they are computed wherever the controller first asks for them); ``solve`` is the
-    solver-measured wall time of the native calls; ``build`` is the rest.
+    wall time spent in the solver library (object set-up or update plus the native calls);
+    ``build`` is the rest: evaluating tasks and formulating the QPs.
     """
 
     def __init__(self, state: RobotState) -> None:
@@ -107,13 +109,16 @@ class StageTimer:
         self._t0 = time.perf_counter()
         self._dyn0 = state.compute_time
         self.solve = 0.0
+        self.solve_setup = 0.0
         self.solve_internal = 0.0
         self.internal_known = True
         self.levels: dict[str, float] = {}
         self.iterations = 0.0
 
     def add_solution(self, sol: Solution, level: str | None = None) -> None:
-        self.solve += sol.wall_time
+        # building / updating the solver's own object is part of the solver's cost
+        self.solve += sol.setup_time + sol.wall_time
+        self.solve_setup += sol.setup_time
         if sol.internal_time is None:
             self.internal_known = False
         else:
@@ -121,7 +126,8 @@ class StageTimer:
         if sol.iterations is not None:
             self.iterations += sol.iterations
         if level is not None:
-            self.levels[f"solve.{level}"] = self.levels.get(f"solve.{level}", 0.0) + sol.wall_time
+            key = f"solve.{level}"
+            self.levels[key] = self.levels.get(key, 0.0) + sol.setup_time + sol.wall_time
 
     def finish(self) -> dict[str, float]:
         total = time.perf_counter() - self._t0
@@ -130,6 +136,7 @@ class StageTimer:
             "dynamics": dynamics,
             "build": max(0.0, total - dynamics - self.solve),
             "solve": self.solve,
+            "solve_setup": self.solve_setup,
             "solve_internal": self.solve_internal if self.internal_known else float("nan"),
             "total": total,
         }

@@ -42,7 +42,7 @@ class QpWbcConfig(ControllerConfig):
         "full", description="(q̈, Γ, f) or torque-eliminated (q̈, f)"
     )
     weights: list[float] = Field(
-        [1e3, 1e1, 1e-1, 1e-3],
+        [1e3, 1.0, 1e-3, 1e-6],
         description="task weight per priority (1 first); the last one repeats for lower ones",
     )
     wrench_weight: float = Field(1e-5, ge=0, description="weight of ‖f‖²")

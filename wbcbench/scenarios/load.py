@@ -69,9 +69,9 @@ def format_loc(loc: tuple[Any, ...]) -> str:
     return out or "(top level)"
 
 
-def _model_at(loc: tuple[Any, ...]) -> type[BaseModel] | None:
+def _model_at(loc: tuple[Any, ...], root: type[BaseModel] = Scenario) -> type[BaseModel] | None:
     """The schema model that owns the location (for listing its valid keys)."""
-    model: Any = Scenario
+    model: Any = root
     for part in loc:
         if isinstance(part, int):
             continue
@@ -113,11 +113,11 @@ def _union_member(ann: Any, tag: str) -> Any:
     return None
 
 
-def _message(err: dict[str, Any]) -> str:
+def _message(err: dict[str, Any], root: type[BaseModel] = Scenario) -> str:
     kind = err["type"]
     loc = tuple(err["loc"])
     if kind == "extra_forbidden":
-        owner = _model_at(loc[:-1])
+        owner = _model_at(loc[:-1], root)
         valid = sorted(owner.model_fields) if owner is not None else []
         return f"unknown key {loc[-1]!r}; valid keys: {', '.join(valid)}"
     if kind == "missing":
@@ -125,19 +125,34 @@ def _message(err: dict[str, Any]) -> str:
     if kind == "union_tag_invalid":
         ctx = err.get("ctx", {})
         return f"unknown type {ctx.get('tag')!r}; valid choices: {ctx.get('expected_tags')}"
+    if kind == "literal_error":
+        expected = err.get("ctx", {}).get("expected", "")
+        return f"invalid value {err.get('input')!r}; valid choices: {expected}"
     msg = str(err["msg"])
     return msg.removeprefix("Value error, ")
 
 
-def validation_error(file: str, exc: ValidationError) -> ScenarioError:
-    """The first error of a pydantic ValidationError as a ScenarioError (others appended)."""
+def validation_error(
+    file: str, exc: ValidationError, root: type[BaseModel] = Scenario, prefix: str = ""
+) -> ScenarioError:
+    """The first error of a pydantic ValidationError as a ScenarioError (others appended).
+
+    ``root`` is the model that was validated and ``prefix`` its key path in the file.
+    """
+
+    def key(err: dict[str, Any]) -> str:
+        loc = format_loc(tuple(err["loc"]))
+        if not prefix:
+            return loc
+        return prefix if loc == "(top level)" else f"{prefix}.{loc}"
+
     errors = exc.errors()
     first = errors[0]
-    message = _message(first)
+    message = _message(first, root)
     if len(errors) > 1:
-        rest = "; ".join(f"{format_loc(tuple(e['loc']))}: {_message(e)}" for e in errors[1:4])
+        rest = "; ".join(f"{key(e)}: {_message(e, root)}" for e in errors[1:4])
         message += f" (also: {rest}{' …' if len(errors) > 4 else ''})"
-    return ScenarioError(file, format_loc(tuple(first["loc"])), message)
+    return ScenarioError(file, key(first), message)
 
 
 # -- overrides ----------------------------------------------------------------------------------------
@@ -301,8 +316,7 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
         try:
             cls.Config.model_validate(settings)
         except ValidationError as exc:
-            err = validation_error(file, exc)
-            raise ScenarioError(file, f"controllers.{name}.{err.key}", str(err).split(": ", 2)[-1])
+            raise validation_error(file, exc, cls.Config, f"controllers.{name}") from None
 
 
 def controller_settings(loaded: LoadedScenario, name: str) -> dict[str, Any]:

@@ -211,10 +211,12 @@ class SimSpec(Strict):
     timestep: float = Field(0.0005, gt=0, le=0.002, description="physics step [s]")
     integrator: Literal["implicitfast", "implicit", "Euler", "RK4"] = "implicitfast"
     joint_friction: bool = Field(
-        True, description="simulate the model's joint damping and Coulomb friction"
+        False,
+        description="simulate the model's joint damping and Coulomb friction (the papers' "
+        "simulations drive ideal torque sources, so it is off by default)",
     )
     friction_compensation: bool = Field(
-        True, description="add the model's viscous + Coulomb friction to the commanded torque"
+        False, description="add the model's viscous + Coulomb friction to the commanded torque"
     )
     fall_height: float = Field(
         0.6, gt=0, lt=1, description="fall when the base drops below this fraction of its start"

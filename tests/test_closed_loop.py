@@ -1,0 +1,99 @@
+"""Closed-loop runs in MuJoCo, the results store and the `run` command."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from wbcbench.bench.results import ResultsStore
+from wbcbench.bench.runner import execute
+from wbcbench.cli import main
+from wbcbench.scenarios.load import load_scenario
+from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", ["tocabi_stand_sway", "comanplus_stand_sway"])
+def test_stand_sway_tracks_the_com_within_half_a_millimetre(scenario: str, tmp_path: Path) -> None:
+    loaded = load_scenario(scenario)
+    store = ResultsStore(tmp_path)
+    record = execute(loaded, RunSettings(controller="qp_wbc", solver="proxqp"), store)
+    assert record is not None
+    assert record.row["status"] == "ok", record.row["message"]
+    assert not record.row["fell"]
+    metrics = {(m["task"], m["metric"]): m["value"] for m in record.metrics}
+    assert metrics[("com", "err_mean")] < 0.5e-3
+    assert metrics[("*", "torque_limit_excess")] == 0.0
+    assert metrics[("*", "solve_failures")] == 0.0
+    # the commanded wrenches respect the cone; the simulated ones carry the load
+    assert metrics[("*", "cop_violation_pred")] <= 1e-6
+    log = pd.read_parquet(next((tmp_path / "logs").glob("*.parquet")))
+    simulated = log["wrench_sim.l_sole.fz"] + log["wrench_sim.r_sole.fz"]
+    predicted = log["wrench_pred.l_sole.fz"] + log["wrench_pred.r_sole.fz"]
+    assert np.median(simulated) == pytest.approx(np.median(predicted), rel=0.02)
+
+
+def test_motors_too_weak_to_stand_end_in_a_fall() -> None:
+    # at 2 % of the torque limits the QP is infeasible; with the failures tolerated it falls
+    loaded = load_scenario(
+        "tocabi_stand_sway",
+        ("duration=3", "limits.torque_scale=0.02", "sim.max_consecutive_failures=5000"),
+    )
+    result = run_closed_loop(loaded, RunSettings(solver="proxqp"))
+    assert result.status in ("fell", "failed")
+    assert result.fell or result.failures > 0
+
+
+def test_solver_failures_hold_the_last_torque_and_are_counted(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """After 20 good ticks every solve fails: the torque is held, then the run stops."""
+    from wbcbench.qp import Solution, SolutionStatus, base
+
+    loaded = load_scenario("tocabi_stand_sway", ("duration=0.2", "sim.max_consecutive_failures=15"))
+    real_solve = base.QPSolver.solve
+    calls = {"n": 0}
+
+    def flaky(self, problem, x0=None, raise_on_failure=False):  # noqa: ANN001
+        calls["n"] += 1
+        if calls["n"] <= 20:
+            return real_solve(self, problem, x0, raise_on_failure)
+        return Solution(SolutionStatus.FAILED, solver="proxqp", message="injected failure")
+
+    monkeypatch.setattr(base.QPSolver, "solve", flaky)
+    result = run_closed_loop(loaded, RunSettings(solver="proxqp"))
+    assert result.status == "failed"
+    assert result.failures == 15
+    assert "15 failed ticks in a row: proxqp: failed: injected failure" in result.message
+    log = result.log.arrays()
+    assert list(log["ok"][19:21]) == [1.0, 0.0]
+    # the held torque is the last good one
+    tau = np.column_stack([log[f"tau.{j}"] for j in result.robot.joint_names])
+    np.testing.assert_array_equal(tau[20:], np.repeat(tau[19:20], len(tau) - 20, axis=0))
+
+
+def test_run_command_writes_tables_and_resumes(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "res"
+    args = ["run", "tocabi_stand_sway", "--set", "duration=0.3", "--solver", "proxqp",
+            "--solver", "daqp", "--out", str(out), "--no-progress"]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert "qp_wbc" in printed and "daqp" in printed
+    runs = pd.read_csv(out / "runs.csv")
+    assert {"scenario", "robot", "controller", "solver", "status", "fell"} <= set(runs.columns)
+    assert list(runs["solver"]) == ["proxqp", "daqp"]
+    metrics = pd.read_csv(out / "metrics.csv")
+    assert {"controller", "solver", "task", "metric", "value", "unit"} <= set(metrics.columns)
+    names = set(metrics["metric"])
+    for name in ("err_mean", "err_max", "t_total_median_us", "t_solve_median_us",
+                 "t_solve_internal_median_us"):
+        assert name in names
+    assert (out / "runs.parquet").exists() and (out / "provenance.json").exists()
+    assert len(list((out / "logs").glob("*.parquet"))) == 2
+    # a rerun resumes: nothing recomputed
+    assert main(args) == 0
+    assert "skipped" in capsys.readouterr().out
+    assert len(pd.read_csv(out / "runs.csv")) == 2

@@ -1,0 +1,153 @@
+"""Scenario validation: every bad input gives one error naming the file and the key path."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from wbcbench.cli import main
+from wbcbench.errors import ScenarioError
+from wbcbench.robots.loader import load_robot
+from wbcbench.scenarios.load import (
+    SCENARIO_DIR,
+    available_scenarios,
+    check_against_robot,
+    load_scenario,
+)
+
+BASE = SCENARIO_DIR / "tocabi_stand_sway.yaml"
+
+
+def variant(tmp_path: Path, old: str, new: str, name: str = "bad.yaml") -> Path:
+    text = BASE.read_text()
+    assert old in text, old
+    path = tmp_path / name
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+def error_of(path: Path, overrides: tuple[str, ...] = ()) -> str:
+    with pytest.raises(ScenarioError) as exc:
+        loaded = load_scenario(path, overrides)
+        check_against_robot(loaded, load_robot(loaded.spec.robot))
+    return str(exc.value)
+
+
+@pytest.mark.parametrize("name", available_scenarios())
+def test_shipped_scenarios_validate(name: str) -> None:
+    loaded = load_scenario(name)
+    check_against_robot(loaded, load_robot(loaded.spec.robot))
+    assert len(loaded.hash) == 12
+
+
+def test_unknown_key(tmp_path: Path) -> None:
+    path = variant(tmp_path, "duration: 10.0", "duration: 10.0\ndurration: 3")
+    assert error_of(path) == (
+        f"{path}: durration: unknown key 'durration'; valid keys: contacts, control_rate, "
+        "controllers, description, duration, initial, limits, metrics, name, reconstruction, "
+        "reproduces, robot, sim, tasks, version"
+    )
+
+
+def test_unknown_key_inside_a_task(tmp_path: Path) -> None:
+    path = variant(tmp_path, "  - name: pelvis\n", "  - name: pelvis\n    gain: 3\n")
+    assert error_of(path) == (
+        f"{path}: tasks[1].gain: unknown key 'gain'; valid keys: absolute, axes, frame, joints, "
+        "kp, kv, level, name, priority, reference, type, weight"
+    )
+
+
+def test_unknown_task_type(tmp_path: Path) -> None:
+    path = variant(tmp_path, "type: com\n", "type: centre_of_mass\n")
+    assert error_of(path) == (
+        f"{path}: tasks[0].type: invalid value 'centre_of_mass'; valid choices: 'com', "
+        "'frame_position', 'frame_orientation', 'frame_pose', 'joint_posture' or 'joint_damping'"
+    )
+
+
+def test_frame_the_robot_lacks(tmp_path: Path) -> None:
+    path = variant(tmp_path, "frame: l_hand", "frame: l_hnd")
+    message = error_of(path)
+    assert message.startswith(f"{path}: tasks[3].frame: unknown frame 'l_hnd'; valid choices: ")
+    assert "l_hand" in message and "r_sole" in message
+
+
+def test_contact_frame_the_robot_lacks(tmp_path: Path) -> None:
+    path = variant(tmp_path, "frame: l_sole", "frame: left_foot")
+    assert error_of(path).startswith(f"{path}: contacts[0].frame: unknown frame 'left_foot'")
+
+
+def test_trajectory_of_the_wrong_dimension(tmp_path: Path) -> None:
+    path = variant(tmp_path, "amplitude: [0.025, 0.0, 0.0]", "amplitude: [0.025, 0.0]")
+    assert error_of(path) == (
+        f"{path}: tasks[0].reference.amplitude: expected 3 values (one per axis x, y, z), got 2"
+    )
+
+
+def test_trajectory_with_reversed_times(tmp_path: Path) -> None:
+    path = variant(tmp_path, "t0: 2.0, t1: 6.0", "t0: 6.0, t1: 2.0")
+    assert error_of(path) == f"{path}: tasks[0].reference: t1 (2.0) must be greater than t0 (6.0)"
+
+
+def test_unknown_trajectory_type(tmp_path: Path) -> None:
+    path = variant(tmp_path, "type: spline_there_and_back", "type: spline")
+    assert error_of(path) == (
+        f"{path}: tasks[0].reference: unknown type 'spline'; valid choices: 'constant', "
+        "'sinusoid', 'spline_there_and_back', 'min_jerk', 'piecewise'"
+    )
+
+
+def test_axes_invalid_for_the_task_type(tmp_path: Path) -> None:
+    path = variant(tmp_path, "    frame: pelvis\n", "    frame: pelvis\n    axes: [x]\n")
+    assert error_of(path) == (
+        f"{path}: tasks[1]: axes ['x'] invalid for frame_orientation; valid choices: rx, ry, rz "
+        "(each at most once)"
+    )
+
+
+def test_controller_settings_are_validated(tmp_path: Path) -> None:
+    assert error_of(BASE, ("controllers.qp_wbc.wieghts=[1, 2]",)) == (
+        f"{BASE}: controllers.qp_wbc.wieghts: unknown key 'wieghts'; valid keys: "
+        "acceleration_weight, torque_weight, variables, weights, wrench_weight"
+    )
+    assert error_of(BASE, ("controllers.qp_wbc.variables=half",)) == (
+        f"{BASE}: controllers.qp_wbc.variables: invalid value 'half'; valid choices: 'full' or "
+        "'eliminated'"
+    )
+
+
+def test_overrides_are_validated_like_the_file() -> None:
+    assert error_of(BASE, ("duration=-1",)) == f"{BASE}: duration: Input should be greater than 0"
+    assert error_of(BASE, ("tasks.9.kp=3",)) == (
+        f"{BASE}: tasks.9: index '9' out of range (the list has 6 items)"
+    )
+    loaded = load_scenario(BASE, ("duration=3", "tasks.0.kp=50"))
+    assert loaded.spec.duration == 3.0
+    assert loaded.spec.tasks[0].kp == 50
+    assert loaded.hash != load_scenario(BASE).hash
+
+
+def test_cli_prints_one_line_and_no_traceback(tmp_path: Path, capsys) -> None:
+    path = variant(tmp_path, "type: com\n", "type: comm\n")
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"error: {path}: tasks[0].type:")
+    assert main(["run", str(BASE), "--solver", "nosuch"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: unknown solver 'nosuch'; valid choices: ")
+    assert "proxqp" in err and "osqp" in err and "Traceback" not in err
+
+
+def test_cli_subprocess_has_no_traceback(tmp_path: Path) -> None:
+    path = variant(tmp_path, "frame: l_hand", "frame: l_hnd")
+    proc = subprocess.run(
+        [sys.executable, "-m", "wbcbench.cli", "validate", str(path)],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.startswith(f"error: {path}: tasks[3].frame: unknown frame 'l_hnd'")
