@@ -19,8 +19,8 @@ test: $(STAMP)
 	$(PY) -m pytest -q
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check wbcbench tests
-	$(VENV)/bin/ruff format --check wbcbench tests
+	$(VENV)/bin/ruff check wbcbench tests benchmarks
+	$(VENV)/bin/ruff format --check wbcbench tests benchmarks
 	$(VENV)/bin/mypy wbcbench
 
 models: $(STAMP)

@@ -57,7 +57,7 @@ def test_solver_failures_hold_the_last_torque_and_are_counted(
     real_solve = base.QPSolver.solve
     calls = {"n": 0}
 
-    def flaky(self, problem, x0=None, raise_on_failure=False):  # noqa: ANN001
+    def flaky(self, problem, x0=None, raise_on_failure=False):
         calls["n"] += 1
         if calls["n"] <= 20:
             return real_solve(self, problem, x0, raise_on_failure)
@@ -77,8 +77,19 @@ def test_solver_failures_hold_the_last_torque_and_are_counted(
 
 def test_run_command_writes_tables_and_resumes(tmp_path: Path, capsys) -> None:
     out = tmp_path / "res"
-    args = ["run", "tocabi_stand_sway", "--set", "duration=0.3", "--solver", "proxqp",
-            "--solver", "daqp", "--out", str(out), "--no-progress"]
+    args = [
+        "run",
+        "tocabi_stand_sway",
+        "--set",
+        "duration=0.3",
+        "--solver",
+        "proxqp",
+        "--solver",
+        "daqp",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
     assert main(args) == 0
     printed = capsys.readouterr().out
     assert "qp_wbc" in printed and "daqp" in printed
@@ -88,8 +99,13 @@ def test_run_command_writes_tables_and_resumes(tmp_path: Path, capsys) -> None:
     metrics = pd.read_csv(out / "metrics.csv")
     assert {"controller", "solver", "task", "metric", "value", "unit"} <= set(metrics.columns)
     names = set(metrics["metric"])
-    for name in ("err_mean", "err_max", "t_total_median_us", "t_solve_median_us",
-                 "t_solve_internal_median_us"):
+    for name in (
+        "err_mean",
+        "err_max",
+        "t_total_median_us",
+        "t_solve_median_us",
+        "t_solve_internal_median_us",
+    ):
         assert name in names
     assert (out / "runs.parquet").exists() and (out / "provenance.json").exists()
     assert len(list((out / "logs").glob("*.parquet"))) == 2

@@ -32,8 +32,13 @@ def test_minimum_normal_force() -> None:
 def test_cop_box_matches_moment_ratios() -> None:
     fz = 200.0
     # CoP x = −m_y / f_z, CoP y = m_x / f_z
-    for cop_x, cop_y, ok in ((0.07, 0.0, True), (0.08, 0.0, False), (-0.08, 0.0, False),
-                             (0.0, 0.049, True), (0.0, -0.051, False)):
+    for cop_x, cop_y, ok in (
+        (0.07, 0.0, True),
+        (0.08, 0.0, False),
+        (-0.08, 0.0, False),
+        (0.0, 0.049, True),
+        (0.0, -0.051, False),
+    ):
         wrench = np.array([0, 0, fz, cop_y * fz, -cop_x * fz, 0])
         assert feasible(FOOT, wrench) is ok, (cop_x, cop_y)
         assert bool(FOOT.violation(wrench)["cop"] == 0.0) is ok
@@ -60,6 +65,6 @@ def test_yaw_moment_bound() -> None:
 
 def test_stacking_is_block_diagonal() -> None:
     hand = PlaneContact("l_palm", x_range=(-0.005, 0.005), y_range=(-0.005, 0.005), mu=0.05)
-    C, lower, upper = stack_wrench_constraints([FOOT, hand])
+    C, _, _ = stack_wrench_constraints([FOOT, hand])
     assert C.shape == (22, 12)
     assert np.all(C[:11, 6:] == 0) and np.all(C[11:, :6] == 0)

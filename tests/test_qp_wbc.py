@@ -15,6 +15,7 @@ from wbcbench.scenarios.load import build_contacts, build_tasks, load_scenario, 
 
 from .conftest import random_standing_state
 
+
 def objective(problem: Problem, x: np.ndarray) -> float:
     return float(0.5 * x @ problem.H @ x + problem.g @ x)
 
@@ -45,7 +46,7 @@ def check_against_oracle(robot: Robot, controller: QpWbc, n_states: int, seed: i
     frames = controller.ctx.contact_frames
     q0, v0 = robot.keyframe("stand")
     controller.start(RobotState(robot, q0, v0))
-    for i in range(n_states):
+    for _ in range(n_states):
         q, v = random_standing_state(robot, rng)
         state = RobotState(robot, q, v)
         out = controller.step(state, t=float(rng.uniform(0, 10)))

@@ -19,7 +19,7 @@ def test_derivatives_match_finite_differences(name: str) -> None:
     traj = CASES[name]
     eps = 1e-6
     for t in np.linspace(0.05, 7.95, 97):
-        x, xd, xdd = traj.sample(t)
+        _, xd, xdd = traj.sample(t)
         xp, xdp, _ = traj.sample(t + eps)
         xm, xdm, _ = traj.sample(t - eps)
         np.testing.assert_allclose(xd, (xp - xm) / (2 * eps), atol=1e-6)

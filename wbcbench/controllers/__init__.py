@@ -1,10 +1,10 @@
 """Controller plugins and their registry."""
 
 from wbcbench.controllers.base import (
-    ControlOutput,
     Controller,
     ControllerConfig,
     ControllerContext,
+    ControlOutput,
 )
 from wbcbench.controllers.registry import (
     CONTROLLERS,

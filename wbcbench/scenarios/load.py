@@ -50,7 +50,7 @@ class LoadedScenario:
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
-# -- key paths and messages -------------------------------------------------------------------------
+# -- key paths and messages
 
 
 def format_loc(loc: tuple[Any, ...]) -> str:
@@ -146,7 +146,7 @@ def validation_error(
             return loc
         return prefix if loc == "(top level)" else f"{prefix}.{loc}"
 
-    errors = exc.errors()
+    errors: list[dict[str, Any]] = [dict(e) for e in exc.errors()]
     first = errors[0]
     message = _message(first, root)
     if len(errors) > 1:
@@ -155,7 +155,7 @@ def validation_error(
     return ScenarioError(file, key(first), message)
 
 
-# -- overrides ----------------------------------------------------------------------------------------
+# -- overrides
 
 
 def apply_override(raw: dict[str, Any], assignment: str, file: str) -> None:
@@ -190,7 +190,7 @@ def apply_override(raw: dict[str, Any], assignment: str, file: str) -> None:
             raise ScenarioError(file, where, f"cannot set a key inside a {type(node).__name__}")
 
 
-# -- loading ------------------------------------------------------------------------------------------
+# -- loading
 
 
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
@@ -241,7 +241,7 @@ def _check_reference_dim(file: str, i: int, task: TaskSpec) -> None:
     dim = len(task.selected_axes)
     key = f"tasks[{i}].reference"
     if ref.type == "piecewise":
-        got = len(ref.values[0])  # type: ignore[union-attr]
+        got = len(ref.values[0])
         field = "values"
     else:
         field = REFERENCE_DIM_FIELD[ref.type]
@@ -257,7 +257,7 @@ def _check_reference_dim(file: str, i: int, task: TaskSpec) -> None:
         )
 
 
-# -- checks against the robot and the registries ------------------------------------------------
+# -- checks against the robot and the registries
 
 
 def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
@@ -323,7 +323,7 @@ def controller_settings(loaded: LoadedScenario, name: str) -> dict[str, Any]:
     return dict(loaded.spec.controllers.get(name, {}))
 
 
-# -- runtime objects ----------------------------------------------------------------------------------
+# -- runtime objects
 
 
 def build_reference(task: TaskSpec, dim: int) -> tr.Trajectory | None:
@@ -364,12 +364,14 @@ def build_tasks(spec: Scenario, robot: Any) -> list[Task]:
         )
         if t.frame is not None:
             kw["frame"] = t.frame
+        task: Task
         if issubclass(cls, JointPostureTask):
-            task = cls(joints=tuple(t.joints or ()), **kw)
-            task.bind(tuple(robot.joint_names))
-            ref = build_reference(t, task.dim)
+            joint_task = cls(joints=tuple(t.joints or ()), **kw)
+            joint_task.bind(tuple(robot.joint_names))
+            ref = build_reference(t, joint_task.dim)
             if ref is not None:
-                task.reference = ref
+                joint_task.reference = ref
+            task = joint_task
         else:
             axes = t.selected_axes
             task = cls(axes=axes, reference=build_reference(t, len(axes)), **kw)
@@ -394,8 +396,8 @@ def build_contact(c: ContactSpec, robot: Any) -> PlaneContact:
         x_range, y_range = (box[0], box[1]), (box[2], box[3])
     return PlaneContact(
         frame=c.frame,
-        x_range=tuple(x_range),
-        y_range=tuple(y_range),
+        x_range=(float(x_range[0]), float(x_range[1])),
+        y_range=(float(y_range[0]), float(y_range[1])),
         mu=c.mu,
         fmin=c.fmin,
         facets=c.facets,

@@ -18,7 +18,7 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-# -- reference trajectories ---------------------------------------------------------------------
+# -- reference trajectories
 
 
 class ConstantRef(Strict):
@@ -105,7 +105,7 @@ REFERENCE_DIM_FIELD = {
 }
 
 
-# -- tasks and contacts -----------------------------------------------------------------------------
+# -- tasks and contacts
 
 TaskType = Literal[
     "com", "frame_position", "frame_orientation", "frame_pose", "joint_posture", "joint_damping"
@@ -251,17 +251,17 @@ class Scenario(Strict):
         None, description="how lost details of the paper's set-up were reconstructed"
     )
     robot: str
-    initial: InitialSpec = Field(default_factory=InitialSpec)
+    initial: InitialSpec = Field(default_factory=lambda: InitialSpec())
     duration: float = Field(gt=0, description="[s]")
     control_rate: float = Field(1000.0, gt=0, description="[Hz]")
     contacts: list[ContactSpec] = Field(default_factory=list)
     tasks: list[TaskSpec] = Field(min_length=1)
-    limits: LimitsSpec = Field(default_factory=LimitsSpec)
-    sim: SimSpec = Field(default_factory=SimSpec)
+    limits: LimitsSpec = Field(default_factory=lambda: LimitsSpec())
+    sim: SimSpec = Field(default_factory=lambda: SimSpec())
     controllers: dict[str, dict[str, Any]] = Field(
         default_factory=dict, description="per-controller settings, validated by each controller"
     )
-    metrics: MetricsSpec = Field(default_factory=MetricsSpec)
+    metrics: MetricsSpec = Field(default_factory=lambda: MetricsSpec())
 
     @model_validator(mode="after")
     def _unique_names(self) -> Scenario:

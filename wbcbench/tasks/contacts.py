@@ -12,8 +12,9 @@ Inequalities, all linear in f:
   faces, ``cos θ_i f_x + sin θ_i f_y ≤ μ cos(π/facets) f_z`` (inscribed, so feasible wrenches of the
   pyramid are feasible for the cone);
 * yaw moment: ``|m_z| ≤ μ_yaw f_z`` (the paper's ``μ_s |f_z| > m_z`` with μ_yaw = μ by default);
-* centre of pressure inside the box: ``x_min ≤ −m_y / f_z ≤ x_max`` and ``y_min ≤ m_x / f_z ≤ y_max``,
-  written as ``x_min f_z ≤ −m_y ≤ x_max f_z`` (valid because f_z > 0).
+* centre of pressure inside the box: ``x_min ≤ −m_y / f_z ≤ x_max`` and
+  ``y_min ≤ m_x / f_z ≤ y_max``, written as ``x_min f_z ≤ −m_y ≤ x_max f_z`` (valid because
+  f_z > 0).
 """
 
 from __future__ import annotations

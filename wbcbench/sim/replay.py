@@ -1,0 +1,104 @@
+"""Open-loop replay: time controllers on exactly the same recorded states.
+
+A closed-loop run is recorded once (time, q, v at every control tick); every controller × solver
+combination then steps through those states with its own internal state (hot solvers, warm
+starts) but without feeding its torques back, so all combinations solve the same problems.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from wbcbench.controllers.base import ControllerContext, ControlOutput
+from wbcbench.controllers.registry import make_controller
+from wbcbench.dynamics.state import RobotState
+from wbcbench.robots.loader import Robot, load_robot
+from wbcbench.scenarios.load import (
+    LoadedScenario,
+    build_contacts,
+    build_tasks,
+    controller_settings,
+    torque_limits,
+)
+from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
+
+
+@dataclass
+class Recording:
+    """States of a closed-loop run: times (T,), q (T, nq), v (T, nv)."""
+
+    scenario: str
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def record_states(
+    loaded: LoadedScenario, settings: RunSettings | None = None, robot: Robot | None = None
+) -> Recording:
+    """Run the scenario in closed loop once and keep the state of every control tick."""
+    ts: list[float] = []
+    qs: list[np.ndarray] = []
+    vs: list[np.ndarray] = []
+    dt = loaded.spec.dt
+
+    def keep(state: RobotState, out: ControlOutput) -> None:
+        ts.append(len(ts) * dt)
+        qs.append(state.q.copy())
+        vs.append(state.v.copy())
+
+    run_closed_loop(loaded, settings or RunSettings(), robot=robot, on_step=keep)
+    return Recording(loaded.name, np.asarray(ts), np.asarray(qs), np.asarray(vs))
+
+
+@dataclass
+class ReplayTimings:
+    """Per-tick stage timings [s] of one controller × solver on a recording."""
+
+    stages: dict[str, np.ndarray] = field(default_factory=dict)
+    failures: int = 0
+
+    def median_us(self, stage: str, warmup: int = 0) -> float:
+        x = self.stages[stage][warmup:]
+        x = x[np.isfinite(x)]
+        return float(np.median(x) * 1e6) if x.size else float("nan")
+
+
+def replay(
+    loaded: LoadedScenario,
+    recording: Recording,
+    settings: RunSettings,
+    robot: Robot | None = None,
+) -> ReplayTimings:
+    """Step a fresh controller through every recorded state; collect its stage timings."""
+    spec = loaded.spec
+    robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
+    ctx = ControllerContext(
+        robot=robot,
+        tasks=build_tasks(spec, robot),
+        contacts=build_contacts(spec, robot),
+        tau_max=torque_limits(spec, robot),
+        solver=settings.solver,
+        tier=settings.tier,
+        mode=settings.mode,
+        dt=spec.dt,
+    )
+    cfg = {**controller_settings(loaded, settings.controller), **settings.controller_config}
+    controller = make_controller(settings.controller, ctx, cfg)
+    data = robot.pin_model.createData()
+    columns: dict[str, list[float]] = {}
+    failures = 0
+    for i in range(len(recording)):
+        state = RobotState(robot, recording.q[i], recording.v[i], data)
+        if i == 0:
+            controller.start(state)
+        out = controller.step(state, float(recording.t[i]))
+        failures += not out.ok
+        for stage, value in out.timings.items():
+            columns.setdefault(stage, []).append(value)
+    return ReplayTimings({k: np.asarray(v) for k, v in columns.items()}, failures)
