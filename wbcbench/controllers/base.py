@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp import Problem, Solution, make_solver
 from wbcbench.robots.loader import Robot
+from wbcbench.scenarios.schema import Scenario
 from wbcbench.tasks.contacts import PlaneContact
 from wbcbench.tasks.tasks import Task, TaskTerm
 
@@ -71,6 +72,7 @@ class ControlOutput:
         tau: joint torques (k,) [N·m], Pinocchio actuated order.
         qdd: the joint acceleration the controller predicts (n,).
         wrench: the stacked contact wrenches it predicts (6c,), reaction on the robot.
+        qd: the joint velocity command (n,) of velocity-level (kinematic) controllers, else None.
         terms: the evaluated tasks (errors for the logs).
         timings: seconds per stage: ``dynamics``, ``build``, ``solve`` (wall time of the solver
             library: building or updating its object, ``solve_setup``, plus the native solve
@@ -88,6 +90,7 @@ class ControlOutput:
     wrench: np.ndarray
     terms: list[TaskTerm]
     timings: dict[str, float]
+    qd: np.ndarray | None = None
     ok: bool = True
     message: str = ""
     iterations: float = float("nan")
@@ -148,13 +151,28 @@ class Controller(ABC):
     """Base class of controller plugins.
 
     Subclasses set ``name``, ``Config`` (a :class:`ControllerConfig`) and ``summary``, and
-    implement :meth:`step`. ``applies_to`` may reject scenarios the formulation cannot handle
-    (e.g. a kinematic controller on a torque scenario) with a reason.
+    implement :meth:`step`. :meth:`applies_to` may reject scenarios the formulation cannot
+    handle (e.g. a kinematic controller on a torque scenario) with a reason.
     """
 
     name: ClassVar[str] = ""
     summary: ClassVar[str] = ""
     Config: ClassVar[type[ControllerConfig]] = ControllerConfig
+    #: "torque" controllers drive the MuJoCo simulation; "velocity" controllers command q̇ and
+    #: are integrated kinematically
+    kind: ClassVar[str] = "torque"
+
+    @classmethod
+    def applies_to(cls, scenario: Scenario) -> str:
+        """Why this controller cannot run ``scenario`` ("" when it can).
+
+        Sweeps use it to build the "every controller that applies" matrix; the default accepts
+        dynamic scenarios for torque controllers and kinematic ones for velocity controllers.
+        """
+        wanted = "kinematic" if cls.kind == "velocity" else "dynamic"
+        if scenario.kind != wanted:
+            return f"{cls.name} is a {cls.kind} controller; the scenario is {scenario.kind}"
+        return ""
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         self.ctx = ctx

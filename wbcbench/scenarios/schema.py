@@ -251,6 +251,11 @@ class Scenario(Strict):
         None, description="how lost details of the paper's set-up were reconstructed"
     )
     robot: str
+    kind: Literal["dynamic", "kinematic"] = Field(
+        "dynamic",
+        description="dynamic: torque controllers in MuJoCo; kinematic: velocity-level "
+        "controllers integrated without dynamics",
+    )
     initial: InitialSpec = Field(default_factory=lambda: InitialSpec())
     duration: float = Field(gt=0, description="[s]")
     control_rate: float = Field(1000.0, gt=0, description="[Hz]")
