@@ -36,7 +36,11 @@ RUN_COLUMNS = (
     "wall_time_s",
     "failures",
     "code_version",
+    "kind",
+    "settings",
 )
+#: what a run row measures: a closed-loop run, or open-loop replay timing on recorded states
+RUN_KINDS = ("tracking", "timing")
 METRIC_COLUMNS = ("run_id", "scenario", "controller", "solver", "task", "metric", "value", "unit")
 
 
@@ -73,6 +77,13 @@ class ResultsStore:
     @staticmethod
     def _append(path: Path, columns: tuple[str, ...], rows: list[dict[str, Any]]) -> None:
         new = not path.exists()
+        if not new:
+            with path.open(newline="") as fh:
+                header = next(csv.reader(fh), [])
+            if tuple(header) != columns:
+                # a folder written by an older version: rewrite it once with the new columns
+                # (missing ones empty) so appended rows line up with the header
+                pd.read_csv(path).reindex(columns=list(columns)).to_csv(path, index=False)
         with path.open("a", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
             if new:
@@ -99,7 +110,13 @@ class ResultsStore:
                 pd.read_csv(csv_path).to_parquet(csv_path.with_suffix(".parquet"), index=False)
 
     def runs(self) -> pd.DataFrame:
-        return pd.read_csv(self.runs_csv) if self.runs_csv.exists() else pd.DataFrame()
+        if not self.runs_csv.exists():
+            return pd.DataFrame()
+        runs = pd.read_csv(self.runs_csv)
+        if "kind" not in runs.columns:
+            runs["kind"] = "tracking"
+        runs["kind"] = runs["kind"].fillna("tracking")
+        return runs
 
     def metrics(self) -> pd.DataFrame:
         return pd.read_csv(self.metrics_csv) if self.metrics_csv.exists() else pd.DataFrame()

@@ -27,49 +27,45 @@ def code_version(store: ResultsStore) -> str:
     return f"{store.provenance['wbcbench']}@{store.provenance['git_commit'].split('+')[0]}"
 
 
-def run_id(loaded: LoadedScenario, settings: RunSettings, version: str, seed: int = 0) -> str:
-    key = json.dumps(
-        [
-            loaded.name,
-            loaded.hash,
-            settings.controller,
-            settings.controller_config,
-            settings.solver,
-            settings.tier,
-            settings.mode,
-            seed,
-            version,
-        ],
-        sort_keys=True,
-    )
+def run_id(
+    loaded: LoadedScenario,
+    settings: RunSettings,
+    version: str,
+    seed: int = 0,
+    extra: dict[str, Any] | None = None,
+) -> str:
+    """The key a rerun skips by; ``extra`` holds any further setting (e.g. a timing window)."""
+    parts: list[Any] = [
+        loaded.name,
+        loaded.hash,
+        settings.controller,
+        settings.controller_config,
+        settings.solver,
+        settings.tier,
+        settings.mode,
+        seed,
+        version,
+    ]
+    if extra:  # absent for plain tracking runs, so their ids stay what they were
+        parts.append(extra)
+    key = json.dumps(parts, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest()[:16]
 
 
-@dataclass
-class RunRecord:
-    row: dict[str, Any]
-    metrics: list[dict[str, Any]]
-    result: RunResult | None
-
-
-def execute(
+def base_row(
     loaded: LoadedScenario,
     settings: RunSettings,
-    store: ResultsStore,
-    progress: Callable[[int, int], None] | None = None,
-    skip_done: bool = True,
-) -> RunRecord | None:
-    """Run one combination and append it to the store (None when it was already there)."""
-    version = code_version(store)
-    rid = run_id(loaded, settings, version)
-    if skip_done and rid in store.done_run_ids():
-        return None
-    spec = loaded.spec
-    row: dict[str, Any] = dict(
+    rid: str,
+    version: str,
+    kind: str = "tracking",
+    extra: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The identifying columns of a run row."""
+    return dict(
         run_id=rid,
         scenario=loaded.name,
         scenario_hash=loaded.hash,
-        robot=spec.robot,
+        robot=loaded.spec.robot,
         controller=settings.controller,
         controller_config=json.dumps(settings.controller_config, sort_keys=True),
         solver=settings.solver,
@@ -77,7 +73,32 @@ def execute(
         mode=settings.mode,
         seed=0,
         code_version=version,
+        kind=kind,
+        settings=json.dumps(extra or {}, sort_keys=True),
     )
+
+
+@dataclass
+class RunRecord:
+    row: dict[str, Any]
+    metrics: list[dict[str, Any]]
+    result: RunResult | None
+    log: dict[str, Any] | None = None
+
+
+def compute_tracking(
+    loaded: LoadedScenario,
+    settings: RunSettings,
+    rid: str,
+    version: str,
+    progress: Callable[[int, int], None] | None = None,
+) -> RunRecord:
+    """Run one closed-loop combination and return its row, metrics and log (nothing stored).
+
+    Never raises: an exception becomes a row with status ``error`` and its message.
+    """
+    spec = loaded.spec
+    row = base_row(loaded, settings, rid, version)
     base = dict(scenario=loaded.name, controller=settings.controller, solver=settings.solver)
     metrics: list[dict[str, Any]] = []
     result: RunResult | None = None
@@ -104,6 +125,27 @@ def execute(
     except Exception as exc:  # a bug or a library error in one run must not end the sweep
         last = traceback.format_exception_only(type(exc), exc)[-1].strip()
         row.update(status="error", fell=False, message=last, ticks=0, failures=0)
+    return RunRecord(row, metrics, result, log)
+
+
+def store_record(store: ResultsStore, loaded: LoadedScenario, record: RunRecord) -> None:
+    """Append a finished run to the store (with the scenario in the provenance)."""
     store.record_scenario(loaded.name, loaded.hash, str(loaded.path))
-    store.add_run(row, metrics, log)
-    return RunRecord(row, metrics, result)
+    store.add_run(record.row, record.metrics, record.log)
+
+
+def execute(
+    loaded: LoadedScenario,
+    settings: RunSettings,
+    store: ResultsStore,
+    progress: Callable[[int, int], None] | None = None,
+    skip_done: bool = True,
+) -> RunRecord | None:
+    """Run one combination and append it to the store (None when it was already there)."""
+    version = code_version(store)
+    rid = run_id(loaded, settings, version)
+    if skip_done and rid in store.done_run_ids():
+        return None
+    record = compute_tracking(loaded, settings, rid, version, progress)
+    store_record(store, loaded, record)
+    return record
