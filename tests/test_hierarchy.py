@@ -1,0 +1,133 @@
+"""Lexicographic least squares: the strategies against each other and first principles."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from wbcbench.errors import UnknownNameError
+from wbcbench.qp import make_solver
+from wbcbench.qp.hierarchy import (
+    Constraints,
+    Objective,
+    PriorityLevel,
+    row_space_and_null_space,
+    solve_hierarchy,
+)
+
+
+def random_hierarchy(seed: int, n: int = 14, active: bool = True):
+    """Hard equalities + box, three conflicting levels (one with inequalities), a final."""
+    rng = np.random.default_rng(seed)
+    hard = Constraints(
+        n,
+        A=rng.standard_normal((3, n)),
+        b=rng.standard_normal(3),
+        lb=np.full(n, -2.0 if active else -50.0),
+        ub=np.full(n, 2.0 if active else 50.0),
+    )
+    A1 = rng.standard_normal((4, n))
+    A2 = np.vstack([A1[:2] + 0.1 * rng.standard_normal((2, n)), rng.standard_normal((3, n))])
+    C2 = rng.standard_normal((3, n))
+    c_mid = C2 @ rng.standard_normal(n)
+    levels = [
+        PriorityLevel("L1", A=A1, b=rng.standard_normal(4)),
+        PriorityLevel(
+            "L2",
+            A=A2,
+            b=rng.standard_normal(5),
+            C=C2,
+            l=c_mid - (0.05 if active else 50),
+            u=c_mid + (0.05 if active else 50),
+        ),
+        PriorityLevel("L3", A=rng.standard_normal((6, n)), b=rng.standard_normal(6)),
+    ]
+    finals = [Objective("reg", np.eye(n), np.zeros(n))]
+    return hard, levels, finals
+
+
+def solve(strategy: str, hard, levels, finals, solver: str = "clarabel"):
+    handles = [make_solver(solver, tier="high") for _ in range(len(levels) + len(finals))]
+    return solve_hierarchy(hard, levels, finals, strategy, handles)
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("active", [False, True])
+def test_cascade_nullspace_and_rqr_agree(seed: int, active: bool) -> None:
+    hard, levels, finals = random_hierarchy(seed, active=active)
+    cascade = solve("cascade", hard, levels, finals)
+    nullspace = solve("nullspace", hard, levels, finals)
+    rqr = solve_hierarchy(hard, levels, finals, "rqr")
+    assert cascade.ok and nullspace.ok and rqr.ok, (cascade.message, nullspace.message)
+    np.testing.assert_allclose(nullspace.x, cascade.x, atol=1e-6)
+    if all(np.linalg.norm(lv.v) < 1e-9 for lv in cascade.levels):
+        np.testing.assert_allclose(rqr.x, cascade.x, atol=1e-6)
+    else:
+        # rqr gives a level's inequalities precedence over its equalities (RQR-HQP §III-B);
+        # the QP strategies trade the two off jointly: rqr violates them no more
+        for a, b in zip(rqr.levels, cascade.levels, strict=True):
+            assert np.linalg.norm(a.v) <= np.linalg.norm(b.v) + 1e-9
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_each_level_is_optimal_given_the_levels_above(seed: int) -> None:
+    """Level 1 alone reaches the same residual as inside the hierarchy; hard rows hold."""
+    hard, levels, finals = random_hierarchy(seed)
+    full = solve("nullspace", hard, levels, finals)
+    top = solve("nullspace", hard, levels[:1], finals)
+    w_full = np.linalg.norm(full.levels[0].w)
+    w_top = np.linalg.norm(top.levels[0].w)
+    assert w_full == pytest.approx(w_top, abs=1e-7)
+    np.testing.assert_allclose(hard.A @ full.x, hard.b, atol=1e-8)
+    assert np.all(full.x <= 2.0 + 1e-8) and np.all(full.x >= -2.0 - 1e-8)
+    # adding level 3 never worsens levels 1 and 2
+    two = solve("nullspace", hard, levels[:2], finals)
+    for i in range(2):
+        assert np.linalg.norm(full.levels[i].w) <= np.linalg.norm(two.levels[i].w) + 1e-7
+        assert np.linalg.norm(full.levels[i].v) <= np.linalg.norm(two.levels[i].v) + 1e-7
+
+
+def test_weighted_approaches_the_hierarchy_with_separated_weights() -> None:
+    hard, levels, finals = random_hierarchy(3, active=False)
+    strict = solve("nullspace", hard, levels, finals)
+    for lv, w in zip(levels, (1e8, 1e4, 1.0), strict=True):
+        lv.weight = w
+    finals[0].weight = 1e-4
+    weighted = solve_hierarchy(hard, levels, finals, "weighted", [make_solver("clarabel", "high")])
+    assert weighted.ok
+    # level 1 is feasible: the hierarchy meets it exactly, the weights nearly
+    assert np.linalg.norm(strict.levels[0].w) < 1e-8
+    assert np.linalg.norm(weighted.levels[0].w) < 1e-5
+    np.testing.assert_allclose(weighted.x, strict.x, atol=2e-2)
+
+
+def test_every_backend_solves_the_cascade() -> None:
+    from wbcbench.qp import available_solvers
+
+    hard, levels, finals = random_hierarchy(1, active=False)
+    reference = solve("cascade", hard, levels, finals)
+    for name in available_solvers():
+        if name in ("quadprog", "qpsolvers:quadprog", "highs", "qpsolvers:highs"):
+            continue  # semidefinite level QPs: quadprog needs PD; HiGHS stays at ~1e-6
+        result = solve("nullspace", hard, levels, finals, solver=name)
+        assert result.ok, (name, result.message)
+        np.testing.assert_allclose(result.x, reference.x, atol=1e-4, err_msg=name)
+
+
+def test_row_and_null_space_bases() -> None:
+    rng = np.random.default_rng(0)
+    E = rng.standard_normal((3, 7))
+    E = np.vstack([E, E[0] + E[1]])  # rank 3
+    R, Z = row_space_and_null_space(E)
+    assert R.shape == (3, 7) and Z.shape == (7, 4)
+    np.testing.assert_allclose(E @ Z, 0, atol=1e-12)
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+
+
+def test_unknown_strategy() -> None:
+    hard, levels, finals = random_hierarchy(0)
+    with pytest.raises(UnknownNameError) as exc:
+        solve_hierarchy(hard, levels, finals, "lexico")
+    assert str(exc.value) == (
+        "unknown hierarchy strategy 'lexico'; valid choices: cascade, nullspace, rqr, weighted"
+    )

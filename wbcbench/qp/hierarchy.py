@@ -1,0 +1,499 @@
+"""Lexicographic (prioritized) least squares over one decision vector, by four strategies.
+
+A hierarchy is: hard constraints that hold at every level, soft priority levels (each a least-
+squares equality part ``‖A x − b‖²`` and a minimal-violation inequality part ``l ≤ C x − v ≤ u``,
+``‖v‖²``), then final objectives ``‖F x − f‖²`` that resolve what redundancy is left.
+
+Strategies:
+
+* ``cascade`` — the conventional HQP (OSF-HQP paper §II, eq. 2–15): one QP per level over the
+  full variable and that level's slacks, every hard constraint and every previous level's
+  inequalities (with their optimal slacks) kept, every previous equality held at its optimum.
+  The held equalities are kept as an orthonormal basis of their row space, evaluated at the
+  previous level's solution: the same feasible set as fixing each slack, but never a rank-
+  deficient or slightly inconsistent equality system for the solver.
+* ``nullspace`` — the "sequential method": the previous equalities are eliminated, x = x_p + Z y
+  with Z an orthonormal null-space basis (rank-revealing QR), so each level's QP is over y and the
+  level's inequality slacks only; previous inequalities kept with fixed slacks.
+* ``weighted`` — one QP: Σ weight_l (‖A_l x − b_l‖² + ‖v_l‖²) + Σ weight ‖F x − f‖².
+* ``rqr`` — the regularised reduced-QR hierarchical least squares of :mod:`wbcbench.qp.hls`
+  (active set per level, no QP solver); hard constraints become its first level. Within a level
+  it gives the inequalities precedence over the equalities (RQR-HQP §III-B), where the QP
+  strategies minimise both slacks jointly: the answers differ only when a level's own
+  inequalities and equalities conflict.
+
+Cascade and nullspace give the same solution whenever the finals determine it uniquely.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+import scipy.linalg
+
+from wbcbench.errors import UnknownNameError
+from wbcbench.qp.base import QPSolver
+from wbcbench.qp.problem import Problem
+from wbcbench.qp.solution import Solution, SolutionStatus
+
+if TYPE_CHECKING:
+    from wbcbench.controllers.base import StageTimer
+
+Array = np.ndarray
+Strategy = Literal["cascade", "nullspace", "weighted", "rqr"]
+STRATEGIES: tuple[str, ...] = ("cascade", "nullspace", "weighted", "rqr")
+RANK_TOL = 1e-10
+
+
+def _rows(M: Array | None, n: int) -> Array:
+    return np.zeros((0, n)) if M is None else np.atleast_2d(np.asarray(M, dtype=float))
+
+
+def _vec(v: Array | None, m: int, fill: float = 0.0) -> Array:
+    return np.full(m, fill) if v is None else np.asarray(v, dtype=float).reshape(m)
+
+
+@dataclass
+class Constraints:
+    """Hard constraints (hold at every level): A x = b, l ≤ C x ≤ u, lb ≤ x ≤ ub."""
+
+    n: int
+    A: Array | None = None
+    b: Array | None = None
+    C: Array | None = None
+    l: Array | None = None  # noqa: E741 - the QP literature's symbol for the lower bound
+    u: Array | None = None
+    lb: Array | None = None
+    ub: Array | None = None
+
+    def __post_init__(self) -> None:
+        self.A = _rows(self.A, self.n)
+        self.b = _vec(self.b, self.A.shape[0])
+        self.C = _rows(self.C, self.n)
+        self.l = _vec(self.l, self.C.shape[0], -np.inf)
+        self.u = _vec(self.u, self.C.shape[0], np.inf)
+
+
+@dataclass
+class PriorityLevel:
+    """One soft level: minimise ‖A x − b‖² + ‖v‖² with l ≤ C x − v ≤ u."""
+
+    name: str
+    A: Array | None = None
+    b: Array | None = None
+    C: Array | None = None
+    l: Array | None = None  # noqa: E741 - the QP literature's symbol for the lower bound
+    u: Array | None = None
+    weight: float = 1.0
+
+    def prepared(self, n: int) -> PriorityLevel:
+        A = _rows(self.A, n)
+        C = _rows(self.C, n)
+        return PriorityLevel(
+            self.name,
+            A,
+            _vec(self.b, A.shape[0]),
+            C,
+            _vec(self.l, C.shape[0], -np.inf),
+            _vec(self.u, C.shape[0], np.inf),
+            self.weight,
+        )
+
+
+@dataclass
+class Objective:
+    """A final level: minimise ‖F x − f‖² over what the levels above leave free."""
+
+    name: str
+    F: Array
+    f: Array
+    weight: float = 1.0
+
+    def as_level(self) -> PriorityLevel:
+        return PriorityLevel(self.name, A=self.F, b=self.f, weight=self.weight)
+
+
+@dataclass
+class LevelResult:
+    """Optimal slacks of one level: w = A x − b (m,), v = inequality violation (r,)."""
+
+    name: str
+    w: Array
+    v: Array
+    solution: Solution | None
+    time: float
+
+
+@dataclass
+class HierarchyResult:
+    x: Array
+    ok: bool
+    message: str = ""
+    levels: list[LevelResult] = field(default_factory=list)
+
+
+# -- linear algebra --------------------------------------------------------------------------
+
+
+def row_space_and_null_space(E: Array, tol: float = RANK_TOL) -> tuple[Array, Array]:
+    """Orthonormal bases (R, Z) of the row space and null space of E (p, n).
+
+    R is (rank, n) with orthonormal rows spanning E's rows; Z is (n, n − rank). From a column-
+    pivoted Householder QR of Eᵀ.
+    """
+    n = E.shape[1]
+    if E.shape[0] == 0:
+        return np.zeros((0, n)), np.eye(n)
+    Q, R, _ = scipy.linalg.qr(E.T, pivoting=True, mode="full", check_finite=False)
+    diag = np.abs(np.diag(R))
+    rank = int(np.sum(diag > tol * max(1.0, diag[0]))) if diag.size else 0
+    return Q[:, :rank].T, Q[:, rank:]
+
+
+def _violation(Cx: Array, lower: Array, upper: Array) -> Array:
+    """Signed slack v that puts C x − v inside [l, u] with the smallest |v|."""
+    return np.where(Cx > upper, Cx - upper, np.where(Cx < lower, Cx - lower, 0.0))
+
+
+# -- the strategies ----------------------------------------------------------------------------
+
+
+def solve_hierarchy(
+    hard: Constraints,
+    levels: list[PriorityLevel],
+    finals: list[Objective],
+    strategy: str,
+    solvers: list[QPSolver] | None = None,
+    timer: StageTimer | None = None,
+) -> HierarchyResult:
+    """Solve the hierarchy; ``solvers`` holds one QP handle per level then per final."""
+    if strategy not in STRATEGIES:
+        raise UnknownNameError("hierarchy strategy", strategy, STRATEGIES)
+    n = hard.n
+    soft = [lv.prepared(n) for lv in levels] + [f.as_level().prepared(n) for f in finals]
+    n_finals = len(finals)
+    if strategy == "rqr":
+        return _solve_rqr(hard, soft, timer)
+    if solvers is None or len(solvers) < (1 if strategy == "weighted" else len(soft)):
+        raise ValueError("one solver handle per level (and per final) is needed")
+    if strategy == "weighted":
+        return _solve_weighted(hard, soft, solvers[0], timer)
+    return _solve_sequential(hard, soft, n_finals, solvers, timer, strategy == "nullspace")
+
+
+def _record(timer: StageTimer | None, sol: Solution, name: str) -> None:
+    if timer is not None:
+        timer.add_solution(sol, level=name)
+
+
+def _solve_weighted(
+    hard: Constraints, soft: list[PriorityLevel], solver: QPSolver, timer: StageTimer | None
+) -> HierarchyResult:
+    n = hard.n
+    r_total = sum(lv.C.shape[0] for lv in soft)  # type: ignore[union-attr]
+    nx = n + r_total
+    H = np.zeros((nx, nx))
+    g = np.zeros(nx)
+    C_rows: list[Array] = []
+    lo: list[Array] = []
+    hi: list[Array] = []
+    col = n
+    for lv in soft:
+        A, C = lv.A, lv.C
+        assert A is not None and C is not None
+        H[:n, :n] += lv.weight * (A.T @ A)
+        g[:n] -= lv.weight * (A.T @ lv.b)
+        r = C.shape[0]
+        if r:
+            H[col : col + r, col : col + r] += lv.weight * np.eye(r)
+            block = np.zeros((r, nx))
+            block[:, :n] = C
+            block[:, col : col + r] = -np.eye(r)
+            C_rows.append(block)
+            lo.append(lv.l)  # type: ignore[arg-type]
+            hi.append(lv.u)  # type: ignore[arg-type]
+        col += r
+    problem = _with_hard(hard, H, g, C_rows, lo, hi, nx, name="weighted")
+    sol = solver.solve(problem)
+    _record(timer, sol, "weighted")
+    if not sol.success or sol.x is None:
+        return HierarchyResult(np.zeros(n), False, f"weighted: {sol.status}: {sol.message}")
+    x = sol.x[:n]
+    results = [_level_result(lv, x, None, 0.0) for lv in soft]
+    results[0].solution = sol
+    return HierarchyResult(x, True, "", results)
+
+
+def _with_hard(
+    hard: Constraints,
+    H: Array,
+    g: Array,
+    C_rows: list[Array],
+    lo: list[Array],
+    hi: list[Array],
+    nx: int,
+    name: str,
+    eq_rows: list[tuple[Array, Array]] = (),  # type: ignore[assignment]
+) -> Problem:
+    """A QP over z = (x, extra) with the hard constraints on x plus extra rows over z."""
+    n = hard.n
+    assert hard.A is not None and hard.C is not None and hard.b is not None
+    pad = np.zeros((hard.A.shape[0], nx - n))
+    A_blocks = [np.hstack([hard.A, pad])] + [rows for rows, _ in eq_rows]
+    b_blocks = [hard.b] + [rhs for _, rhs in eq_rows]
+    if hard.C.shape[0]:
+        C_rows = [np.hstack([hard.C, np.zeros((hard.C.shape[0], nx - n))]), *C_rows]
+        lo = [hard.l, *lo]  # type: ignore[list-item]
+        hi = [hard.u, *hi]  # type: ignore[list-item]
+    lb = ub = None
+    if hard.lb is not None or hard.ub is not None:
+        lb = np.full(nx, -np.inf)
+        ub = np.full(nx, np.inf)
+        if hard.lb is not None:
+            lb[:n] = hard.lb
+        if hard.ub is not None:
+            ub[:n] = hard.ub
+    return Problem(
+        H,
+        g,
+        np.vstack(A_blocks),
+        np.concatenate(b_blocks),
+        np.vstack(C_rows) if C_rows else np.zeros((0, nx)),
+        np.concatenate(lo) if lo else np.zeros(0),
+        np.concatenate(hi) if hi else np.zeros(0),
+        lb,
+        ub,
+        name=name,
+    )
+
+
+def _level_result(lv: PriorityLevel, x: Array, sol: Solution | None, t: float) -> LevelResult:
+    assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
+    w = lv.A @ x - lv.b
+    v = _violation(lv.C @ x, lv.l, lv.u) if lv.C.shape[0] else np.zeros(0)
+    return LevelResult(lv.name, w, v, sol, t)
+
+
+def _solve_sequential(
+    hard: Constraints,
+    soft: list[PriorityLevel],
+    n_finals: int,
+    solvers: list[QPSolver],
+    timer: StageTimer | None,
+    nullspace: bool,
+) -> HierarchyResult:
+    n = hard.n
+    assert hard.A is not None
+    held_rows: list[Array] = [hard.A]  # equalities held so far (hard first)
+    prev_C: list[Array] = []  # previous levels' inequalities with their slacks fixed
+    prev_lo: list[Array] = []
+    prev_hi: list[Array] = []
+    results: list[LevelResult] = []
+    x: Array | None = None
+    _, Z = row_space_and_null_space(hard.A)
+    # the hard equalities' minimum-norm solution, for the null-space strategy's x_p
+    assert hard.b is not None
+    x_p = np.linalg.lstsq(hard.A, hard.b, rcond=None)[0] if hard.A.shape[0] else np.zeros(n)
+    for i, lv in enumerate(soft):
+        assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
+        t0 = time.perf_counter()
+        if nullspace:
+            sol, x_new = _nullspace_level(hard, lv, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i])
+        else:
+            E = np.vstack(held_rows[1:]) if len(held_rows) > 1 else np.zeros((0, n))
+            Eb, _ = row_space_and_null_space(E)
+            e = Eb @ x if x is not None else np.zeros(0)
+            sol, x_new = _cascade_level(hard, lv, Eb, e, prev_C, prev_lo, prev_hi, solvers[i])
+        elapsed = time.perf_counter() - t0
+        if sol is not None:
+            _record(timer, sol, lv.name)
+            if not sol.success or x_new is None:
+                msg = f"level {lv.name!r}: {sol.solver}: {sol.status}: {sol.message}"
+                return HierarchyResult(np.zeros(n) if x is None else x, False, msg, results)
+        x = x_new
+        assert x is not None
+        res = _level_result(lv, x, sol, elapsed)
+        results.append(res)
+        # hold this level's optimum for the levels below
+        if lv.A.shape[0]:
+            held_rows.append(lv.A)
+            if nullspace:
+                _, Zl = row_space_and_null_space(lv.A @ Z)
+                Z = Z @ Zl
+                x_p = x
+        if lv.C.shape[0]:
+            prev_C.append(lv.C)
+            prev_lo.append(lv.l + res.v)
+            prev_hi.append(lv.u + res.v)
+        if nullspace:
+            x_p = x
+    assert x is not None
+    return HierarchyResult(x, True, "", results)
+
+
+def _cascade_level(
+    hard: Constraints,
+    lv: PriorityLevel,
+    E: Array,
+    e: Array,
+    prev_C: list[Array],
+    prev_lo: list[Array],
+    prev_hi: list[Array],
+    solver: QPSolver,
+) -> tuple[Solution, Array | None]:
+    """QP over z = (x, w, v): min ½‖w‖² + ½‖v‖², A x − w = b, l ≤ C x − v ≤ u, E x = e."""
+    n = hard.n
+    assert lv.A is not None and lv.C is not None and lv.b is not None
+    assert lv.l is not None and lv.u is not None
+    m, r = lv.A.shape[0], lv.C.shape[0]
+    nx = n + m + r
+    H = np.zeros((nx, nx))
+    H[n:, n:] = np.eye(m + r)
+    g = np.zeros(nx)
+    eq_rows: list[tuple[Array, Array]] = []
+    if E.shape[0]:
+        eq_rows.append((np.hstack([E, np.zeros((E.shape[0], m + r))]), e))
+    if m:
+        rows = np.zeros((m, nx))
+        rows[:, :n] = lv.A
+        rows[:, n : n + m] = -np.eye(m)
+        eq_rows.append((rows, lv.b))
+    C_rows: list[Array] = [np.hstack([Cp, np.zeros((Cp.shape[0], m + r))]) for Cp in prev_C]
+    lo = list(prev_lo)
+    hi = list(prev_hi)
+    if r:
+        block = np.zeros((r, nx))
+        block[:, :n] = lv.C
+        block[:, n + m :] = -np.eye(r)
+        C_rows.append(block)
+        lo.append(lv.l)
+        hi.append(lv.u)
+    problem = _with_hard(hard, H, g, C_rows, lo, hi, nx, lv.name, eq_rows)
+    sol = solver.solve(problem)
+    return sol, (sol.x[:n] if sol.success and sol.x is not None else None)
+
+
+def _nullspace_level(
+    hard: Constraints,
+    lv: PriorityLevel,
+    x_p: Array,
+    Z: Array,
+    prev_C: list[Array],
+    prev_lo: list[Array],
+    prev_hi: list[Array],
+    solver: QPSolver,
+) -> tuple[Solution | None, Array | None]:
+    """QP over (y, v) with x = x_p + Z y: min ½‖A Z y − (b − A x_p)‖² + ½‖v‖²."""
+    assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
+    assert hard.C is not None and hard.l is not None and hard.u is not None
+    d = Z.shape[1]
+    r = lv.C.shape[0]
+    if d == 0:
+        return None, x_p.copy()
+    nx = d + r
+    AZ = lv.A @ Z
+    H = np.zeros((nx, nx))
+    H[:d, :d] = AZ.T @ AZ
+    H[d:, d:] = np.eye(r)
+    g = np.zeros(nx)
+    g[:d] = -AZ.T @ (lv.b - lv.A @ x_p)
+    C_list: list[Array] = []
+    lo: list[Array] = []
+    hi: list[Array] = []
+
+    def add(C: Array, lower: Array, upper: Array, slack: bool = False) -> None:
+        if not C.shape[0]:
+            return
+        block = np.zeros((C.shape[0], nx))
+        block[:, :d] = C @ Z
+        if slack:
+            block[:, d:] = -np.eye(r)
+        shift = C @ x_p
+        C_list.append(block)
+        lo.append(lower - shift)
+        hi.append(upper - shift)
+
+    add(hard.C, hard.l, hard.u)
+    if hard.lb is not None or hard.ub is not None:
+        n = hard.n
+        lower = hard.lb if hard.lb is not None else np.full(n, -np.inf)
+        upper = hard.ub if hard.ub is not None else np.full(n, np.inf)
+        finite = np.isfinite(lower) | np.isfinite(upper)
+        add(np.eye(n)[finite], lower[finite], upper[finite])
+    for Cp, lp, hp in zip(prev_C, prev_lo, prev_hi, strict=True):
+        add(Cp, lp, hp)
+    add(lv.C, lv.l, lv.u, slack=True)
+    problem = Problem(
+        H,
+        g,
+        np.zeros((0, nx)),
+        np.zeros(0),
+        np.vstack(C_list) if C_list else np.zeros((0, nx)),
+        np.concatenate(lo) if lo else np.zeros(0),
+        np.concatenate(hi) if hi else np.zeros(0),
+        name=lv.name,
+    )
+    sol = solver.solve(problem)
+    if not sol.success or sol.x is None:
+        return sol, None
+    return sol, x_p + Z @ sol.x[:d]
+
+
+def _solve_rqr(
+    hard: Constraints, soft: list[PriorityLevel], timer: StageTimer | None
+) -> HierarchyResult:
+    from wbcbench.qp.hls import Level, solve_hls
+
+    n = hard.n
+    assert hard.A is not None and hard.C is not None
+    C_hard, l_hard, u_hard = [hard.C], [hard.l], [hard.u]
+    if hard.lb is not None or hard.ub is not None:
+        lower = hard.lb if hard.lb is not None else np.full(n, -np.inf)
+        upper = hard.ub if hard.ub is not None else np.full(n, np.inf)
+        finite = np.isfinite(lower) | np.isfinite(upper)
+        C_hard.append(np.eye(n)[finite])
+        l_hard.append(lower[finite])
+        u_hard.append(upper[finite])
+    Ch = np.vstack(C_hard)
+    levels = [
+        Level(
+            A=hard.A if hard.A.shape[0] else None,
+            b=hard.b if hard.A.shape[0] else None,
+            C=Ch if Ch.shape[0] else None,
+            l=np.concatenate(l_hard) if Ch.shape[0] else None,  # type: ignore[arg-type]
+            u=np.concatenate(u_hard) if Ch.shape[0] else None,  # type: ignore[arg-type]
+            name="hard",
+        )
+    ]
+    for lv in soft:
+        assert lv.A is not None and lv.C is not None
+        levels.append(
+            Level(
+                A=lv.A if lv.A.shape[0] else None,
+                b=lv.b if lv.A.shape[0] else None,
+                C=lv.C if lv.C.shape[0] else None,
+                l=lv.l if lv.C.shape[0] else None,
+                u=lv.u if lv.C.shape[0] else None,
+                name=lv.name,
+            )
+        )
+    result = solve_hls(levels)
+    x = result.x
+    out = []
+    for lv, stats in zip(soft, result.levels[1:], strict=True):
+        sol = Solution(
+            SolutionStatus.SOLVED,
+            x=stats.x,
+            iterations=stats.iterations,
+            wall_time=stats.time,
+            solver="rqr",
+        )
+        _record(timer, sol, lv.name)
+        out.append(_level_result(lv, x, sol, stats.time))
+    hard_violation = result.levels[0].violation
+    ok = bool(hard_violation <= 1e-6)
+    msg = "" if ok else f"hard constraints violated by {hard_violation:.2e}"
+    return HierarchyResult(x, ok, msg, out)
