@@ -7,7 +7,9 @@ starts) but without feeding its torques back, so all combinations solve the same
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from os import PathLike
 
 import numpy as np
 
@@ -37,6 +39,22 @@ class Recording:
     def __len__(self) -> int:
         return len(self.t)
 
+    def window(self, start: float, ticks: int) -> Recording:
+        """The ``ticks`` states from time ``start`` [s] on (fewer if the recording ends)."""
+        i0 = int(np.searchsorted(self.t, start - 1e-9))
+        sl = slice(i0, i0 + ticks)
+        return Recording(self.scenario, self.t[sl], self.q[sl], self.v[sl])
+
+    def save(self, path: str | PathLike[str]) -> None:
+        """Write the states to an ``.npz`` file."""
+        np.savez(path, scenario=self.scenario, t=self.t, q=self.q, v=self.v)
+
+    @classmethod
+    def load(cls, path: str | PathLike[str]) -> Recording:
+        """Read states written by :meth:`save`."""
+        with np.load(path, allow_pickle=False) as data:
+            return cls(str(data["scenario"]), data["t"], data["q"], data["v"])
+
 
 def record_states(
     loaded: LoadedScenario, settings: RunSettings | None = None, robot: Robot | None = None
@@ -62,6 +80,7 @@ class ReplayTimings:
 
     stages: dict[str, np.ndarray] = field(default_factory=dict)
     failures: int = 0
+    message: str = ""  # the first failure's message
 
     def median_us(self, stage: str, warmup: int = 0) -> float:
         x = self.stages[stage][warmup:]
@@ -74,8 +93,15 @@ def replay(
     recording: Recording,
     settings: RunSettings,
     robot: Robot | None = None,
+    keep_problems: bool = False,
+    on_step: Callable[[int, ControlOutput], str] | None = None,
 ) -> ReplayTimings:
-    """Step a fresh controller through every recorded state; collect its stage timings."""
+    """Step a fresh controller through every recorded state; collect its stage timings.
+
+    ``keep_problems`` makes each output carry its QPs; ``on_step(i, out)`` runs after each
+    (timed) step and may return a failure message that marks the tick failed (e.g. an
+    independent validity check).
+    """
     spec = loaded.spec
     robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
     ctx = ControllerContext(
@@ -87,18 +113,25 @@ def replay(
         tier=settings.tier,
         mode=settings.mode,
         dt=spec.dt,
+        keep_problems=keep_problems,
     )
     cfg = {**controller_settings(loaded, settings.controller), **settings.controller_config}
     controller = make_controller(settings.controller, ctx, cfg)
     data = robot.pin_model.createData()
     columns: dict[str, list[float]] = {}
     failures = 0
+    message = ""
     for i in range(len(recording)):
         state = RobotState(robot, recording.q[i], recording.v[i], data)
         if i == 0:
             controller.start(state)
         out = controller.step(state, float(recording.t[i]))
-        failures += not out.ok
+        problem = (out.message or "QP failed") if not out.ok else ""
+        if on_step is not None:
+            problem = on_step(i, out) or problem
+        if problem:
+            failures += 1
+            message = message or f"tick {i}: {problem}"
         for stage, value in out.timings.items():
             columns.setdefault(stage, []).append(value)
-    return ReplayTimings({k: np.asarray(v) for k, v in columns.items()}, failures)
+    return ReplayTimings({k: np.asarray(v) for k, v in columns.items()}, failures, message)
