@@ -240,6 +240,37 @@ class MetricsSpec(Strict):
     timing_warmup: int = Field(50, ge=0, description="control ticks discarded from timing stats")
 
 
+class ObstacleSpec(Strict):
+    """A fixed box in the world (kinematic scenarios' collision avoidance)."""
+
+    name: str
+    type: Literal["box"] = "box"
+    pos: tuple[float, float, float] = Field(description="centre in the world [m]")
+    size: tuple[float, float, float] = Field(description="half sizes along the box axes [m]")
+    rpy: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description="roll, pitch, yaw [rad]")
+
+    @field_validator("size")
+    @classmethod
+    def _positive(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
+        if min(v) <= 0:
+            raise ValueError(f"half sizes must be > 0, got {list(v)}")
+        return v
+
+
+class EnvironmentSpec(Strict):
+    """What surrounds the robot besides the floor."""
+
+    obstacles: list[ObstacleSpec] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _unique(self) -> EnvironmentSpec:
+        names = [o.name for o in self.obstacles]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"obstacle names must be unique; repeated: {', '.join(dup)}")
+        return self
+
+
 class Scenario(Strict):
     """A declarative benchmark scenario."""
 
@@ -267,6 +298,7 @@ class Scenario(Strict):
         default_factory=dict, description="per-controller settings, validated by each controller"
     )
     metrics: MetricsSpec = Field(default_factory=lambda: MetricsSpec())
+    environment: EnvironmentSpec = Field(default_factory=lambda: EnvironmentSpec())
 
     @model_validator(mode="after")
     def _unique_names(self) -> Scenario:
