@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from os import PathLike
+from typing import Any
 
 import numpy as np
 
@@ -75,6 +76,17 @@ def record_states(
 
 
 @dataclass
+class _WrappingContext(ControllerContext):
+    """A context whose solver handles pass through ``wrap`` (e.g. to record their solutions)."""
+
+    wrap: Callable[[Any], Any] | None = None
+
+    def new_solver(self) -> Any:
+        handle = super().new_solver()
+        return self.wrap(handle) if self.wrap is not None else handle
+
+
+@dataclass
 class ReplayTimings:
     """Per-tick stage timings [s] of one controller × solver on a recording."""
 
@@ -95,16 +107,17 @@ def replay(
     robot: Robot | None = None,
     keep_problems: bool = False,
     on_step: Callable[[int, ControlOutput], str] | None = None,
+    wrap_solver: Callable[[Any], Any] | None = None,
 ) -> ReplayTimings:
     """Step a fresh controller through every recorded state; collect its stage timings.
 
     ``keep_problems`` makes each output carry its QPs; ``on_step(i, out)`` runs after each
     (timed) step and may return a failure message that marks the tick failed (e.g. an
-    independent validity check).
+    independent validity check); ``wrap_solver`` wraps every solver handle the controller makes.
     """
     spec = loaded.spec
     robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
-    ctx = ControllerContext(
+    ctx = _WrappingContext(
         robot=robot,
         tasks=build_tasks(spec, robot),
         contacts=build_contacts(spec, robot),
@@ -114,6 +127,7 @@ def replay(
         mode=settings.mode,
         dt=spec.dt,
         keep_problems=keep_problems,
+        wrap=wrap_solver,
     )
     cfg = {**controller_settings(loaded, settings.controller), **settings.controller_config}
     controller = make_controller(settings.controller, ctx, cfg)
