@@ -14,7 +14,7 @@ import pytest
 from wbcbench.errors import ModelError, UnknownNameError
 from wbcbench.robots.convert import pin_to_mj
 from wbcbench.robots.generator import MODELS_DIR, generate
-from wbcbench.robots.library import SPECS, TOCABI_ARM, arm_chain, tocabi_like
+from wbcbench.robots.library import SPECS, TOCABI_ARM, TOCABI_DOF_FAMILY, arm_chain, tocabi_like
 from wbcbench.robots.loader import Robot, available_robots, load_robot
 from wbcbench.robots.spec import ChainSpec, mirror_chain
 
@@ -74,10 +74,11 @@ def _height(robot: Robot, d: mujoco.MjData) -> float:
 
 
 def test_available_robots() -> None:
-    assert available_robots() == ["comanplus_like", "tocabi_like"]
+    family = [f"tocabi_dof{d}" for d in TOCABI_DOF_FAMILY if d != 33]
+    assert available_robots() == sorted(["comanplus_like", "tocabi_like", *family])
 
 
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", available_robots())
 def test_committed_file_reproduces_byte_for_byte(name: str) -> None:
     committed = (MODELS_DIR / f"{name}.xml").read_text(encoding="utf-8")
     assert generate(SPECS[name]()) == committed
@@ -220,6 +221,19 @@ def test_stand_soles_flat_on_the_floor(name: str) -> None:
     assert d.site_xpos[m.site("r_hand").id, 1] < pelvis_y - 0.25
 
 
+def test_stand_left_on_one_foot_com_over_the_sole() -> None:
+    r = _robot("tocabi_like")
+    d = _posed(r, "stand_left")
+    m = r.mj_model
+    left, right = m.site("l_sole").id, m.site("r_sole").id
+    assert abs(d.site_xpos[left, 2]) <= 1e-9
+    assert d.site_xmat[left].reshape(3, 3)[:, 2] == pytest.approx([0, 0, 1], abs=1e-9)
+    assert d.site_xpos[right, 2] > 0.03  # the right sole is lifted
+    com = d.subtree_com[m.body("pelvis").id]
+    offset = com[:2] - d.site_xpos[left, :2]
+    assert abs(offset[1]) <= 0.002 and abs(offset[0]) <= 0.03
+
+
 def test_stand_wall_palm_on_the_wall() -> None:
     r = _robot("comanplus_like")
     m = r.mj_model
@@ -255,7 +269,7 @@ def test_unknown_robot_lists_choices() -> None:
     with pytest.raises(UnknownNameError) as exc:
         load_robot("nao")
     assert str(exc.value) == (
-        "unknown robot 'nao'; valid choices: comanplus_like, tocabi_like "
+        f"unknown robot 'nao'; valid choices: {', '.join(available_robots())} "
         "(or give a path to an MJCF/URDF file)"
     )
 

@@ -10,6 +10,7 @@ shorter arm is another list of links attached to the same torso.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import replace
@@ -132,6 +133,10 @@ def _tocabi_waist() -> ChainSpec:
     return ChainSpec("pelvis", links)
 
 
+ArmRow = tuple[
+    str, tuple[float, float, float], tuple[float, float], float, float, float, float, float, float
+]
+
 # Left TOCABI arm in its zero posture: a T-pose along +y (axial joints have a y axis).
 # Each entry: name, axis, range [rad], torque [N·m], armature [kg·m²], friction [N·m],
 # mass [kg], offset of the NEXT joint along +y [m], capsule radius [m].
@@ -192,17 +197,32 @@ def _tocabi_neck() -> ChainSpec:
 def tocabi_like() -> HumanoidSpec:
     """TOCABI-like humanoid, 33 actuated joints (legs 6+6, waist 3, left arm 8, neck 2, right
     arm 8)."""
+    return _tocabi("tocabi_like", TOCABI_ARM, TOCABI_ARM)
+
+
+def _tocabi(name: str, left_arm: Sequence[ArmRow], right_arm: Sequence[ArmRow]) -> HumanoidSpec:
+    """TOCABI-like body with the given left and right arm tables (see ``TOCABI_ARM``)."""
     pelvis = _link(
         "pelvis", ORIGIN, None, 12.2, Box((0.0, 0.0, 0.02), (0.18, 0.28, 0.16)),
         Rod((0, -0.09, 0.02), (0, 0.09, 0.02), 0.09),
     )  # fmt: skip
     leg = _tocabi_leg()
-    arm = arm_chain(TOCABI_ARM, "torso", (0.0, 0.154, 0.33))
-    chains = (leg, mirror_chain(leg), _tocabi_waist(), arm, _tocabi_neck(), mirror_chain(arm))
+    arm = arm_chain(left_arm, "torso", (0.0, 0.154, 0.33))
+    right = mirror_chain(arm_chain(right_arm, "torso", (0.0, 0.154, 0.33)))
+    chains = (leg, mirror_chain(leg), _tocabi_waist(), arm, _tocabi_neck(), right)
     a = 0.16  # knee half-bend of the standing posture [rad]
     legs = _bent_legs(("HipPitch", "Knee", "AnklePitch"), a)
     # Arms down from the T-pose, 0.2 rad away from the body.
     arms = (("L_Shoulder3", -(math.pi / 2 - 0.2)), ("R_Shoulder3", math.pi / 2 - 0.2))
+    # Single support on the left foot: both hip/ankle rolls of -0.172 rad put the CoM over the
+    # left sole (within 1 mm laterally); the right leg rolls 0.05 rad outwards and folds by
+    # 0.25 rad at hip, knee and ankle, lifting its sole 4 cm, still parallel to the floor.
+    s, r, lift = -0.172, -0.05, 0.25
+    one_leg = (
+        *((j, v) for j, v in legs if not j.startswith("R_")),
+        ("L_HipRoll", s), ("L_AnkleRoll", -s), ("R_HipRoll", r), ("R_AnkleRoll", -r),
+        ("R_HipPitch", -a - lift), ("R_Knee", 2 * (a + lift)), ("R_AnklePitch", -a - lift),
+    )  # fmt: skip
     info = RobotInfo(
         contact_frames=("l_sole", "r_sole"),
         contact_rects={
@@ -217,12 +237,71 @@ def tocabi_like() -> HumanoidSpec:
         velocity_limits=_velocity_limits(chains),
     )
     return HumanoidSpec(
-        name="tocabi_like",
+        name=name,
         base=pelvis,
         chains=chains,
-        keyframes=(KeyframeSpec("stand", legs + arms),),
+        keyframes=(
+            KeyframeSpec("stand", legs + arms),
+            KeyframeSpec("stand_left", one_leg + arms, stand_on=("l_sole",)),
+        ),
         info=info,
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# DoF-scaled TOCABI-like family (RC-LQP paper §5.3, Fig. 5): only the arms change.
+
+#: rows of ``TOCABI_ARM`` a shorter arm keeps (Shoulder3, which lowers the arm, is in all)
+_ARM_SUBSETS: dict[int, tuple[int, ...]] = {
+    1: (2,), 2: (2, 4), 3: (0, 2, 4), 4: (0, 1, 2, 4), 5: (0, 1, 2, 4, 6), 6: (0, 1, 2, 3, 4, 6),
+    7: (0, 1, 2, 3, 4, 5, 6), 8: tuple(range(8)),
+}  # fmt: skip
+#: rows of ``TOCABI_ARM`` a longer arm splits in two, in this order
+_ARM_SPLITS = (2, 4, 3, 5, 0, 6, 1)
+#: total actuated DoF of the family members (33 is ``tocabi_like`` itself)
+TOCABI_DOF_FAMILY = (20, 25, 29, 33, 39, 45)
+
+
+def tocabi_arm(dof: int) -> tuple[ArmRow, ...]:
+    """An arm table of ``dof`` joints (1…15) with the TOCABI arm's mass and reach.
+
+    Shorter arms keep a subset of the TOCABI rows (``_ARM_SUBSETS``); each kept row takes the
+    mass and length of the dropped rows after it (and the first one those before it). Longer
+    arms split rows in two (``_ARM_SPLITS``): halves of the mass and length, the added joint
+    ``<name>b`` about an axis different from both neighbours.
+    """
+    if not 1 <= dof <= len(TOCABI_ARM) + len(_ARM_SPLITS):
+        raise ValueError(f"arm DoF must be 1…{len(TOCABI_ARM) + len(_ARM_SPLITS)}, got {dof}")
+    if dof <= len(TOCABI_ARM):
+        keep = _ARM_SUBSETS[dof]
+        rows = []
+        for i, k in enumerate(keep):
+            first = 0 if i == 0 else k
+            last = keep[i + 1] if i + 1 < len(keep) else len(TOCABI_ARM)
+            group = TOCABI_ARM[first:last]
+            mass = sum(r[6] for r in group)
+            length = sum(r[7] for r in group)
+            rows.append((*TOCABI_ARM[k][:6], mass, length, TOCABI_ARM[k][8]))
+        return tuple(rows)
+    split = set(_ARM_SPLITS[: dof - len(TOCABI_ARM)])
+    out: list[ArmRow] = []
+    for i, row in enumerate(TOCABI_ARM):
+        if i not in split:
+            out.append(row)
+            continue
+        name, axis, rng, tau, arm, fric, mass, length, radius = row
+        after = TOCABI_ARM[i + 1][1] if i + 1 < len(TOCABI_ARM) else axis
+        extra = next(a for a in (X, Y, Z) if a not in (axis, after))
+        out.append((name, axis, rng, tau, arm, fric, mass / 2, length / 2, radius))
+        out.append((f"{name}b", extra, rng, tau, arm, fric, mass / 2, length / 2, radius))
+    return tuple(out)
+
+
+def tocabi_dof(total: int) -> HumanoidSpec:
+    """TOCABI-like humanoid with ``total`` actuated DoF (legs, waist and neck unchanged: 17 DoF;
+    the arms share the rest, the left one taking the odd joint)."""
+    arms = total - 17
+    return _tocabi(f"tocabi_dof{total}", tocabi_arm((arms + 1) // 2), tocabi_arm(arms // 2))
 
 
 # =============================================================================================
@@ -375,6 +454,11 @@ def comanplus_like() -> HumanoidSpec:
 SPECS: dict[str, Callable[[], HumanoidSpec]] = {
     "tocabi_like": tocabi_like,
     "comanplus_like": comanplus_like,
+    **{
+        f"tocabi_dof{dof}": functools.partial(tocabi_dof, dof)
+        for dof in TOCABI_DOF_FAMILY
+        if dof != 33
+    },
 }
 """Registry of generated robots: name → spec factory (file ``models/<name>.xml``)."""
 
