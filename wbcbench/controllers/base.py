@@ -189,3 +189,9 @@ class Controller(ABC):
 
     def evaluate_tasks(self, state: RobotState, t: float) -> list[TaskTerm]:
         return [task.evaluate(state, t) for task in self.ctx.tasks]
+
+    def close(self) -> None:
+        """Release what the controller holds beyond memory (worker processes, shared memory).
+
+        The runners call it when a run ends, however it ends; the default holds nothing.
+        """
