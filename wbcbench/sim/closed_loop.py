@@ -216,62 +216,65 @@ def run_closed_loop(
     compensate = spec.sim.friction_compensation and spec.sim.joint_friction
     wall0 = time.perf_counter()
     tick = 0
-    for tick in range(n_ticks):
-        t = tick * spec.dt
-        q, v = mj_to_pin(robot, data.qpos, data.qvel)
-        state = RobotState(robot, q, v, pin_data)
-        if tick == 0:
-            controller.start(state)
-        out = controller.step(state, t)
-        if on_step is not None:
-            on_step(state, out)
-        if out.ok:
-            tau = out.tau
-            consecutive = 0
-        else:
-            failures += 1
-            consecutive += 1
-            tau = last_tau
-            if consecutive >= spec.sim.max_consecutive_failures:
-                status, message = "failed", f"{consecutive} failed ticks in a row: {out.message}"
-        last_tau = tau
-        applied = tau + friction_torque(robot, model, v[6:]) if compensate else tau
-        data.ctrl[:] = torque_to_ctrl(robot, applied)
-        for _ in range(substeps):
-            mujoco.mj_step(model, data)
+    try:
+        for tick in range(n_ticks):
+            t = tick * spec.dt
+            q, v = mj_to_pin(robot, data.qpos, data.qvel)
+            state = RobotState(robot, q, v, pin_data)
+            if tick == 0:
+                controller.start(state)
+            out = controller.step(state, t)
+            if on_step is not None:
+                on_step(state, out)
+            if out.ok:
+                tau = out.tau
+                consecutive = 0
+            else:
+                failures += 1
+                consecutive += 1
+                tau = last_tau
+                if consecutive >= spec.sim.max_consecutive_failures:
+                    status, message = "failed", f"{consecutive} failed ticks in a row: {out.message}"
+            last_tau = tau
+            applied = tau + friction_torque(robot, model, v[6:]) if compensate else tau
+            data.ctrl[:] = torque_to_ctrl(robot, applied)
+            for _ in range(substeps):
+                mujoco.mj_step(model, data)
 
-        row: dict[str, float] = {"t": t, "ok": float(out.ok), "iterations": out.iterations}
-        for stage, value in out.timings.items():
-            row[f"time.{stage}"] = value
-        for term in out.terms:
-            norms = term.task.error_norms(term)
-            task_parts.setdefault(term.task.name, list(norms))
-            for part, value in norms.items():
-                row[f"err.{term.task.name}.{part}"] = value
-        for j, name in enumerate(robot.joint_names):
-            row[f"tau.{name}"] = tau[j]
-        sim_w = sensor.wrenches(data)
-        for i, f in enumerate(frames):
-            for c, comp in enumerate(("fx", "fy", "fz", "mx", "my", "mz")):
-                row[f"wrench_pred.{f}.{comp}"] = out.wrench[6 * i + c] if out.ok else np.nan
-                row[f"wrench_sim.{f}.{comp}"] = sim_w[6 * i + c]
-        row["base_z"] = float(data.qpos[2])
-        row["com.x"], row["com.y"], row["com.z"] = (float(x) for x in state.com)
-        for name, value in out.diagnostics.items():
-            row[f"diag.{name}"] = value
-        log.add(row)
-        if progress is not None:
-            progress(tick + 1, n_ticks)
-        if status != "ok":
-            break
+            row: dict[str, float] = {"t": t, "ok": float(out.ok), "iterations": out.iterations}
+            for stage, value in out.timings.items():
+                row[f"time.{stage}"] = value
+            for term in out.terms:
+                norms = term.task.error_norms(term)
+                task_parts.setdefault(term.task.name, list(norms))
+                for part, value in norms.items():
+                    row[f"err.{term.task.name}.{part}"] = value
+            for j, name in enumerate(robot.joint_names):
+                row[f"tau.{name}"] = tau[j]
+            sim_w = sensor.wrenches(data)
+            for i, f in enumerate(frames):
+                for c, comp in enumerate(("fx", "fy", "fz", "mx", "my", "mz")):
+                    row[f"wrench_pred.{f}.{comp}"] = out.wrench[6 * i + c] if out.ok else np.nan
+                    row[f"wrench_sim.{f}.{comp}"] = sim_w[6 * i + c]
+            row["base_z"] = float(data.qpos[2])
+            row["com.x"], row["com.y"], row["com.z"] = (float(x) for x in state.com)
+            for name, value in out.diagnostics.items():
+                row[f"diag.{name}"] = value
+            log.add(row)
+            if progress is not None:
+                progress(tick + 1, n_ticks)
+            if status != "ok":
+                break
 
-        if data.qpos[2] < spec.sim.fall_height * base_z0:
-            status, message = "fell", f"base height {data.qpos[2]:.3f} m at t = {t:.3f} s"
-            break
-        lost = _lost_contact(sensor, data, contact_p0, sim_w, unloaded, spec.sim.contact_slip)
-        if lost:
-            status, message = "fell", f"{lost} at t = {t:.3f} s"
-            break
+            if data.qpos[2] < spec.sim.fall_height * base_z0:
+                status, message = "fell", f"base height {data.qpos[2]:.3f} m at t = {t:.3f} s"
+                break
+            lost = _lost_contact(sensor, data, contact_p0, sim_w, unloaded, spec.sim.contact_slip)
+            if lost:
+                status, message = "fell", f"{lost} at t = {t:.3f} s"
+                break
+    finally:
+        controller.close()  # stop parameter workers however the run ends
 
     return RunResult(
         status=status,
