@@ -1,0 +1,486 @@
+"""Prioritized kinematic control by regularised reduced QR (RQR-HQP paper, §II–IV).
+
+A velocity-level controller: each tick it returns the generalized velocity q̇ (n = 6 + k, the
+floating base included) that the kinematic runner integrates. Every task regulates its error to
+zero through the first-order law of the paper's eq. (2),
+
+    J q̇ = ẋ_d + λ e,    λ = the scenario task's ``kp`` [1/s],
+
+with ``‖ẋ_d + λ e‖`` optionally capped per task (``speed_limits``; the paper caps the hand at
+0.25 m/s). The levels handed to :func:`wbcbench.qp.hls.solve_hls`, highest first:
+
+1. ``contacts`` — every contact frame's 6-D velocity is zero (LOCAL frame). With
+   ``base: support_foot`` the first contact is the kinematic root instead (paper §IV-B: "a foot
+   is conveniently considered as the base link"): the floating-base velocity is eliminated through
+   it, v_base = −B⁻¹ J_joints q̇_j, the variables are the k joint rates and only the other contacts
+   are rows.
+2. ``constraints`` — the inequalities, kept by every lower level (§III): joint limits
+   ξ (q_min − q) ≤ q̇ ≤ ξ (q_max − q) (eq. 48–50, ξ = 0.5 s⁻¹) intersected with the velocity
+   bounds; the CoM inside the support polygon, a_eᵀ ċ_xy ≤ ξ_c (b_e − margin − a_eᵀ c_xy)
+   (``com: polygon``); self-collision between capsule pairs and capsule–box obstacle avoidance,
+   ḋ ≥ −ξ_d (d − d_safe) (eq. 51–53). With ``com: fixed`` the horizontal CoM is regulated to its
+   initial value instead (ċ_xy = −ξ_c (c_xy − c0_xy), the paper's 2 CoM equalities), as a task of
+   this level so that the inequalities bound it.
+3. the scenario's tasks, one level per priority (tasks of equal priority stacked), damped by
+   Tikhonov regularisation (``damping``), and the optional gaze task (eq. 54–55).
+
+``hierarchy: svd | full_qr`` runs the paper's baselines (Fig. 1) in closed loop; they take
+equality levels only, so they need ``inequalities: false``.
+
+A velocity-level controller computes no torque, acceleration or wrench: ``ControlOutput.tau``,
+``qdd`` and ``wrench`` are zero-size arrays and ``qd`` holds the command.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar, Literal
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+from scipy.spatial import ConvexHull
+
+from wbcbench.controllers.base import (
+    Controller,
+    ControllerConfig,
+    ControllerContext,
+    ControlOutput,
+    StageTimer,
+)
+from wbcbench.dynamics.state import RobotState
+from wbcbench.errors import SolverError, WbcBenchError
+from wbcbench.qp.hls import HlsResult, Level, solve_hls
+from wbcbench.qp.hls_baselines import solve_fullqr_hierarchy, solve_svd_hierarchy
+from wbcbench.tasks.collision import Box, CollisionModel, CollisionTerms
+from wbcbench.tasks.tasks import Task, TaskTerm
+
+Array = NDArray[np.float64]
+
+# Default collision pairs of the generated robots: hands and forearms against each other, the
+# torso, the head, the pelvis and the thighs (16 pairs, paper §IV-B), and the arms' distal
+# capsules against obstacles.
+_ARM = {
+    "comanplus_like": ("Elbow_link", "ForearmPlate_link", "Wrist1_link", "Wrist2_link"),
+    "tocabi_like": ("Elbow_link", "Forearm_link", "Wrist1_link", "Wrist2_link"),
+}
+_THIGH = {"comanplus_like": "HipYaw_link", "tocabi_like": "HipPitch_link"}
+
+
+def default_self_pairs(robot_name: str) -> list[tuple[str, str]]:
+    """The 16 self-collision pairs of a generated robot (empty for other robots)."""
+    if robot_name not in _ARM:
+        return []
+    _, forearm, _, hand = _ARM[robot_name]
+    thigh = _THIGH[robot_name]
+    pairs = [
+        (f"L_{hand}", f"R_{hand}"),
+        (f"L_{forearm}", f"R_{forearm}"),
+        (f"L_{hand}", f"R_{forearm}"),
+        (f"R_{hand}", f"L_{forearm}"),
+        (f"L_{hand}", f"L_{thigh}"),
+        (f"R_{hand}", f"R_{thigh}"),
+    ]
+    for side in "LR":
+        pairs += [
+            (f"{side}_{hand}", "torso"),
+            (f"{side}_{forearm}", "torso"),
+            (f"{side}_{hand}", "head"),
+            (f"{side}_{hand}", "pelvis"),
+            (f"{side}_{_ARM[robot_name][0]}", "pelvis"),
+        ]
+    return pairs
+
+
+def default_obstacle_bodies(robot_name: str) -> list[str]:
+    """Bodies checked against obstacles: both arms from the elbow down (empty for others)."""
+    return [f"{s}_{b}" for s in "LR" for b in _ARM.get(robot_name, ())]
+
+
+# --------------------------------------------------------------------------------------------
+# Settings
+# --------------------------------------------------------------------------------------------
+
+
+class GazeSpec(BaseModel):
+    """Keep a frame axis pointed at a world point (paper eq. 54–55)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    name: str = "gaze"
+    frame: str = "head"
+    axis: Literal["x", "y", "z"] = Field("x", description="the optical axis, in the frame")
+    target: tuple[float, float, float] = Field(description="world point to look at [m]")
+    priority: int = Field(2, ge=1, description="level, counted like the scenario tasks")
+    gain: float = Field(1.0, gt=0, description="λ [1/s]")
+    speed_limit: float | None = Field(None, gt=0, description="cap on ‖λ (v × p)‖ [m/s]")
+
+
+class KinHqpConfig(ControllerConfig):
+    """Settings of the prioritized kinematic controller (defaults: the paper's values)."""
+
+    hierarchy: Literal["rqr", "svd", "full_qr"] = Field(
+        "rqr", description="reduced regularised QR with active sets, or the Fig. 1 baselines"
+    )
+    inequalities: bool = Field(True, description="joint, CoM-polygon and collision inequalities")
+    base: Literal["floating", "support_foot"] = Field(
+        "floating",
+        description="variables q̇ (6 + k), or k joint rates with the first contact "
+        "as the kinematic root (the paper's choice)",
+    )
+    com: Literal["polygon", "fixed", "free"] = Field(
+        "polygon", description="CoM kept inside the support polygon, held horizontally, or free"
+    )
+    com_gain: float = Field(1.0, gt=0, description="ξ_c [1/s]")
+    com_margin: float = Field(0.02, ge=0, description="polygon shrink [m]")
+    joint_limit_gain: float = Field(0.5, gt=0, description="ξ of eq. 48–50 [1/s]")
+    velocity_limit: float | None = Field(
+        None, gt=0, description="|q̇_j| bound on every joint [rad/s]; default: the robot's"
+    )
+    collision_gain: float = Field(0.5, gt=0, description="ξ_d of eq. 52 [1/s]")
+    collision_margin: float = Field(0.005, ge=0, description="d_safe [m]")
+    self_collision: list[tuple[str, str]] | None = Field(
+        None, description="body pairs; default: 16 pairs for the generated robots"
+    )
+    obstacle_bodies: list[str] | None = Field(
+        None, description="bodies checked against every obstacle; default: arms below the elbow"
+    )
+    speed_limits: dict[str, float] = Field(
+        default_factory=dict, description="task name → cap on ‖ẋ_d + λ e‖ [m/s or rad/s]"
+    )
+    damping: float = Field(1e-3, ge=0, description="Tikhonov factor of the task levels")
+    gaze: GazeSpec | None = None
+
+    @model_validator(mode="after")
+    def _baselines_take_equalities(self) -> KinHqpConfig:
+        if self.hierarchy != "rqr" and self.inequalities:
+            raise ValueError(
+                f"hierarchy {self.hierarchy!r} handles equality levels only; "
+                "set inequalities: false (or hierarchy: rqr)"
+            )
+        return self
+
+
+# --------------------------------------------------------------------------------------------
+# The gaze task (velocity level only)
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class GazeTerm(TaskTerm):
+    """A gaze term; ``angle`` is the angle between the axis and the target direction [rad]."""
+
+    angle: float = 0.0
+
+
+@dataclass
+class GazeTask(Task):
+    """f = v × p = 0 with v the frame's unit axis and p = target − origin (paper eq. 54).
+
+    ḟ = ([p]× [v]× J_ω − [v]× J_o) q̇ (eq. 55), J_o and J_ω the frame's world linear and angular
+    Jacobians. The reported error is the angle between v and p [rad]. Only velocity-level
+    controllers use it (it has no acceleration-level drift).
+    """
+
+    frame: str = "head"
+    axis: int = 0
+    target: Array = field(default_factory=lambda: np.zeros(3))
+    kind: ClassVar[str] = "orientation"
+
+    def _full_jacobian(self, state: RobotState) -> np.ndarray:
+        raise NotImplementedError("GazeTask.evaluate builds its Jacobian directly")
+
+    def _full_drift(self, state: RobotState) -> np.ndarray:
+        return np.zeros(3)
+
+    def _value(self, state: RobotState) -> np.ndarray:
+        return np.zeros(3)
+
+    def evaluate(self, state: RobotState, t: float) -> TaskTerm:
+        M = state.placement(self.frame)
+        v = M.rotation[:, self.axis]
+        p = self.target - M.translation
+        J6 = state.jacobian(self.frame)
+        vx, px = pin.skew(v), pin.skew(p)
+        J = px @ vx @ J6[3:] - vx @ J6[:3]
+        f = np.cross(v, p)
+        angle = float(np.arctan2(np.linalg.norm(f), v @ p))
+        zeros = np.zeros(3)
+        return GazeTerm(self, J, zeros, zeros, -f, zeros, angle=angle)
+
+    def error_norms(self, term: TaskTerm) -> dict[str, float]:
+        return {"rot": float(getattr(term, "angle", np.nan))}
+
+
+# --------------------------------------------------------------------------------------------
+# The problem of one tick
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass
+class KinematicProblem:
+    """Everything one tick hands to the hierarchy solver.
+
+    Attributes:
+        levels: the hierarchy, in the solver's variables.
+        T: (n, nx) map from the solver's variables to q̇ (identity for a floating base).
+        terms: evaluated tasks (scenario tasks and the gaze).
+        n_eq: equality rows (contacts and CoM hold).
+        n_ineq: one-sided inequality rows (finite bounds).
+        n_task: task rows.
+        collisions: distances and gradients of the collision pairs.
+    """
+
+    levels: list[Level]
+    T: Array
+    terms: list[TaskTerm]
+    n_eq: int
+    n_ineq: int
+    n_task: int
+    collisions: CollisionTerms
+
+
+def _cap(b: Array, limit: float | None) -> Array:
+    """Scale ``b`` down so that ‖b‖ ≤ limit (the paper's bounded regulation, eq. 47)."""
+    if limit is None:
+        return b
+    norm = float(np.linalg.norm(b))
+    return b if norm <= limit else b * (limit / norm)
+
+
+def support_polygon(state: RobotState, contacts: list) -> tuple[Array, Array]:
+    """Outward normals (E, 2) and offsets (E,) of the feet's convex hull: a p ≤ b inside."""
+    pts = []
+    for c in contacts:
+        M = state.placement(c.frame)
+        for x in c.x_range:
+            for y in c.y_range:
+                pts.append(M.act(np.array([x, y, 0.0]))[:2])
+    hull = ConvexHull(np.asarray(pts))
+    # qhull's equations are [a, −b] with a unit outward normals: a·p − b ≤ 0 inside.
+    eq = hull.equations
+    return eq[:, :2].copy(), -eq[:, 2].copy()
+
+
+class KinHqp(Controller):
+    """Prioritized inverse kinematics: regularised reduced QR with active sets."""
+
+    name = "kin_hqp"
+    summary = "prioritized kinematic control (RQR-HQP): velocity-level HLS, inequalities"
+    kind = "velocity"
+    Config = KinHqpConfig
+    config: KinHqpConfig
+
+    def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
+        super().__init__(ctx, config)
+        cfg = self.config
+        robot = ctx.robot
+        self.frames = ctx.contact_frames
+        if cfg.base == "support_foot" and not self.frames:
+            raise WbcBenchError("kin_hqp: base 'support_foot' needs at least one contact")
+        if cfg.com == "polygon" and cfg.inequalities and not ctx.contacts:
+            raise WbcBenchError("kin_hqp: com 'polygon' needs contacts (or com: free)")
+        k = robot.k
+        self.v_max = (
+            np.full(k, cfg.velocity_limit)
+            if cfg.velocity_limit is not None
+            else np.asarray(robot.v_max, dtype=float)
+        )
+        self.gaze: GazeTask | None = None
+        if cfg.gaze is not None:
+            g = cfg.gaze
+            robot.frame_id(g.frame)  # fail early on an unknown frame
+            self.gaze = GazeTask(
+                name=g.name,
+                priority=g.priority,
+                kp=g.gain,
+                frame=g.frame,
+                axis="xyz".index(g.axis),
+                target=np.asarray(g.target, dtype=float),
+            )
+        self._pairs = (
+            cfg.self_collision if cfg.self_collision is not None else default_self_pairs(robot.name)
+        )
+        self._obstacle_bodies = (
+            cfg.obstacle_bodies
+            if cfg.obstacle_bodies is not None
+            else default_obstacle_bodies(robot.name)
+        )
+        self.collision = CollisionModel(robot, self._pairs)
+        self._com0 = np.zeros(2)
+        self._polygon: tuple[Array, Array] | None = None
+        self._solve = {
+            "rqr": solve_hls,
+            "svd": solve_svd_hierarchy,
+            "full_qr": solve_fullqr_hierarchy,
+        }[cfg.hierarchy]
+
+    # -- environment and start --------------------------------------------------------------
+
+    def use_environment(self, obstacles: list[Box]) -> None:
+        """Fixed boxes to avoid (the scenario's ``environment.obstacles``)."""
+        self.collision = CollisionModel(
+            self.ctx.robot, self._pairs, self._obstacle_bodies if obstacles else (), obstacles
+        )
+
+    def start(self, state: RobotState) -> None:
+        super().start(state)
+        if self.gaze is not None:
+            self.gaze.start(state)
+        self._com0 = state.com[:2].copy()
+        if self.ctx.contacts:
+            # The feet are held, so their support polygon is fixed for the run.
+            self._polygon = support_polygon(state, self.ctx.contacts)
+
+    # -- formulation ------------------------------------------------------------------------
+
+    def _root_map(self, state: RobotState) -> Array:
+        """(n, nx): q̇ = T x. Identity, or the support-foot elimination of the base."""
+        n = state.n
+        if self.config.base == "floating":
+            return np.eye(n)
+        Jc = state.jacobian(self.frames[0], local=True)
+        T = np.empty((n, state.k))
+        T[:6] = -np.linalg.solve(Jc[:, :6], Jc[:, 6:])
+        T[6:] = np.eye(state.k)
+        return T
+
+    def _task_rows(self, state: RobotState, t: float) -> tuple[list[TaskTerm], list[Array]]:
+        """Evaluated tasks and their velocity references ẋ_d + λ e (capped)."""
+        terms: list[TaskTerm] = []
+        refs: list[Array] = []
+        for task in self.ctx.tasks:
+            term = task.evaluate(state, t)
+            # ẋ_d from the term: error_vel = ẋ_d − J v
+            xd_d = term.error_vel + term.J @ state.v
+            ref = xd_d + task.kp * term.error
+            refs.append(_cap(ref, self.config.speed_limits.get(task.name)))
+            terms.append(term)
+        if self.gaze is not None:
+            g = self.config.gaze
+            assert g is not None
+            term = self.gaze.evaluate(state, t)
+            refs.append(_cap(g.gain * term.error, g.speed_limit))  # error = −(v × p)
+            terms.append(term)
+        return terms, refs
+
+    def build(self, state: RobotState, t: float) -> KinematicProblem:
+        """The hierarchy of this tick (no solving)."""
+        cfg = self.config
+        T = self._root_map(state)
+        nx = T.shape[1]
+        levels: list[Level] = []
+        n_eq = 0
+
+        # 1. contacts
+        frames = self.frames[1:] if cfg.base == "support_foot" else self.frames
+        if frames:
+            Ac = state.contact_jacobian(frames) @ T
+            levels.append(Level(Ac, np.zeros(Ac.shape[0]), name="contacts"))
+            n_eq += Ac.shape[0]
+
+        # 2. inequalities (and the CoM hold, bounded by them)
+        A_com = b_com = None
+        if cfg.com == "fixed":
+            A_com = state.J_com[:2] @ T
+            b_com = -cfg.com_gain * (state.com[:2] - self._com0)
+            n_eq += 2
+        collisions = self.collision.evaluate(state)
+        C_rows: list[Array] = []
+        lo: list[Array] = []
+        hi: list[Array] = []
+        if cfg.inequalities:
+            q = state.q[7:]
+            xi = cfg.joint_limit_gain
+            lower = np.maximum(xi * (self.ctx.robot.q_min - q), -self.v_max)
+            upper = np.minimum(xi * (self.ctx.robot.q_max - q), self.v_max)
+            # Outside a limit, the limit's pull wins over the velocity bound.
+            lower = np.minimum(lower, upper)
+            C_rows.append(T[6:])
+            lo.append(lower)
+            hi.append(upper)
+            if cfg.com == "polygon" and self._polygon is not None:
+                a, b = self._polygon
+                C_rows.append(a @ (state.J_com[:2] @ T))
+                hi.append(cfg.com_gain * (b - cfg.com_margin - a @ state.com[:2]))
+                lo.append(np.full(a.shape[0], -np.inf))
+            if collisions.d.size:
+                C_rows.append(collisions.grad @ T)
+                lo.append(-cfg.collision_gain * (collisions.d - cfg.collision_margin))
+                hi.append(np.full(collisions.d.size, np.inf))
+        n_ineq = 0
+        if C_rows or A_com is not None:
+            C = np.vstack(C_rows) if C_rows else None
+            lo_v = np.concatenate(lo) if lo else None
+            hi_v = np.concatenate(hi) if hi else None
+            if lo_v is not None and hi_v is not None:
+                n_ineq = int(np.isfinite(lo_v).sum() + np.isfinite(hi_v).sum())
+            levels.append(Level(A_com, b_com, C, lo_v, hi_v, name="constraints"))
+
+        # 3. tasks, one level per priority
+        terms, refs = self._task_rows(state, t)
+        prios = sorted({term.task.priority for term in terms})
+        n_task = 0
+        for p in prios:
+            idx = [i for i, term in enumerate(terms) if term.task.priority == p]
+            A = np.vstack([terms[i].J for i in idx]) @ T
+            b = np.concatenate([refs[i] for i in idx])
+            name = "+".join(terms[i].task.name for i in idx)
+            levels.append(Level(A, b, name=name, damping=cfg.damping))
+            n_task += A.shape[0]
+        if not levels:
+            levels.append(Level(np.zeros((0, nx)), np.zeros(0), name="empty"))
+        return KinematicProblem(levels, T, terms, n_eq, n_ineq, n_task, collisions)
+
+    # -- the step ---------------------------------------------------------------------------
+
+    def solve(self, problem: KinematicProblem) -> HlsResult:
+        """Solve the hierarchy with the configured algorithm (raises SolverError)."""
+        return self._solve(problem.levels)
+
+    def step(self, state: RobotState, t: float) -> ControlOutput:
+        timer = StageTimer(state)
+        problem = self.build(state, t)
+        empty = np.zeros(0)
+        diag: dict[str, float] = {
+            "n_eq": float(problem.n_eq),
+            "n_ineq": float(problem.n_ineq),
+            "n_task": float(problem.n_task),
+        }
+        if problem.collisions.d.size:
+            diag["min_distance"] = problem.collisions.min_distance
+        try:
+            res = self.solve(problem)
+        except SolverError as exc:
+            return ControlOutput(
+                tau=empty,
+                qdd=empty,
+                wrench=empty,
+                terms=problem.terms,
+                timings=timer.finish(),
+                qd=np.zeros(state.n),
+                ok=False,
+                message=f"kin_hqp: {exc}",
+                diagnostics=diag,
+            )
+        timer.solve += res.time
+        timer.solve_internal += res.time
+        iterations = 0
+        for lv in res.levels:
+            timer.levels[f"solve.{lv.name}"] = lv.time
+            diag[f"iter.{lv.name}"] = float(lv.iterations)
+            diag[f"active.{lv.name}"] = float(lv.n_active)
+            diag[f"residual.{lv.name}"] = lv.residual
+            iterations += lv.iterations
+        diag["active"] = float(sum(lv.n_active for lv in res.levels))
+        return ControlOutput(
+            tau=empty,
+            qdd=empty,
+            wrench=empty,
+            terms=problem.terms,
+            timings=timer.finish(),
+            qd=problem.T @ res.x,
+            iterations=float(iterations),
+            diagnostics=diag,
+        )
