@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 
 from wbcbench.controllers.base import ControllerContext, ControlOutput
-from wbcbench.controllers.registry import make_controller
+from wbcbench.controllers.registry import controller_class, make_controller
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.convert import mj_to_pin, torque_to_ctrl
 from wbcbench.robots.loader import Robot, load_robot
@@ -172,7 +172,15 @@ def run_closed_loop(
     progress: Callable[[int, int], None] | None = None,
     on_step: Callable[[RobotState, ControlOutput], None] | None = None,
 ) -> RunResult:
-    """Simulate one scenario with one controller and solver; never raises for a failed QP."""
+    """Simulate one scenario with one controller and solver; never raises for a failed QP.
+
+    Velocity-level controllers and kinematic scenarios run without physics
+    (:func:`wbcbench.sim.kinematic.run_kinematic`).
+    """
+    if controller_class(settings.controller).kind == "velocity" or loaded.spec.kind == "kinematic":
+        from wbcbench.sim.kinematic import run_kinematic  # it imports this module
+
+        return run_kinematic(loaded, settings, robot=robot, progress=progress, on_step=on_step)
     spec = loaded.spec
     robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
     check_against_robot(loaded, robot)
