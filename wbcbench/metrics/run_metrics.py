@@ -3,7 +3,8 @@
 * tracking: per task and error part, ``err_mean`` / ``err_max`` (``err_rot_mean`` … for the
   orientation part of pose tasks) over the scenario's window, and ``err_final``;
 * constraints: torque-limit excess (commanded), friction / CoP / normal-force violations of the
-  predicted (commanded) and simulated wrenches, each the maximum over the run;
+  predicted (commanded) and simulated wrenches, each the maximum over the run; for kinematic
+  runs instead, ``joint_limit_violation`` [rad] and ``min_collision_distance`` [m];
 * failures: failed control ticks;
 * timing: per stage ``t_<stage>_median_us`` and friends, after the warm-up ticks.
 """
@@ -61,21 +62,30 @@ def run_metrics(
             ):
                 rows.append(MetricRow(task, _metric_name(part, stat, parts), value, unit))
 
-    taus = np.column_stack([cols[f"tau.{j}"] for j in result.robot.joint_names])
-    excess = np.max(np.abs(taus) - result.tau_max[None, :])
-    rows.append(MetricRow("*", "torque_limit_excess", max(0.0, float(excess)), "N·m"))
-    for source in ("pred", "sim"):
-        worst = {"normal": 0.0, "friction": 0.0, "cop": 0.0, "yaw": 0.0}
-        for contact in contacts:
-            w6 = np.column_stack([cols[f"wrench_{source}.{contact.frame}.{c}"] for c in WRENCH])
-            for wrench in w6:
-                if not np.all(np.isfinite(wrench)):
-                    continue
-                for key, value in contact.violation(wrench).items():
-                    worst[key] = max(worst[key], value)
-        units = {"normal": "N", "friction": "-", "cop": "m", "yaw": "m"}
-        for key, value in worst.items():
-            rows.append(MetricRow("*", f"{key}_violation_{source}", value, units[key]))
+    # Kinematic runs log no torques or wrenches, but joint margins and collision distances.
+    if all(f"tau.{j}" in cols for j in result.robot.joint_names):
+        taus = np.column_stack([cols[f"tau.{j}"] for j in result.robot.joint_names])
+        excess = np.max(np.abs(taus) - result.tau_max[None, :])
+        rows.append(MetricRow("*", "torque_limit_excess", max(0.0, float(excess)), "N·m"))
+        for source in ("pred", "sim"):
+            worst = {"normal": 0.0, "friction": 0.0, "cop": 0.0, "yaw": 0.0}
+            for contact in contacts:
+                w6 = np.column_stack([cols[f"wrench_{source}.{contact.frame}.{c}"] for c in WRENCH])
+                for wrench in w6:
+                    if not np.all(np.isfinite(wrench)):
+                        continue
+                    for key, value in contact.violation(wrench).items():
+                        worst[key] = max(worst[key], value)
+            units = {"normal": "N", "friction": "-", "cop": "m", "yaw": "m"}
+            for key, value in worst.items():
+                rows.append(MetricRow("*", f"{key}_violation_{source}", value, units[key]))
+    if "joint_margin" in cols:
+        violation = max(0.0, -float(np.min(cols["joint_margin"])))
+        rows.append(MetricRow("*", "joint_limit_violation", violation, "rad"))
+    if "collision_distance" in cols:
+        rows.append(
+            MetricRow("*", "min_collision_distance", float(np.min(cols["collision_distance"])), "m")
+        )
     rows.append(MetricRow("*", "solve_failures", float(result.failures), "ticks"))
 
     for stage in ("dynamics", "build", "solve", "solve_internal", "total"):
