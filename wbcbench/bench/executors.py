@@ -1,0 +1,145 @@
+"""Where closed-loop tracking runs execute: in this process, or on a dask cluster.
+
+Both executors yield ``(job, record)`` as each run finishes; the caller appends the record to
+the results store in this process, so a store only ever has one writer. Timing runs never go
+through a parallel executor: parallel runs perturb each other's timings.
+
+Tracking numbers do not depend on the executor: a closed-loop run is deterministic given the
+scenario, the settings and the libraries, and every worker runs with one BLAS thread like the
+serial executor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from types import TracebackType
+from typing import TYPE_CHECKING, Any
+
+from wbcbench.errors import UnknownNameError
+
+if TYPE_CHECKING:
+    from wbcbench.bench.runner import RunRecord
+    from wbcbench.bench.sweep import Job
+
+EXECUTORS = ("serial", "dask")
+
+
+def run_tracking(
+    scenario_path: str,
+    overrides: tuple[str, ...],
+    settings: Any,
+    rid: str,
+    version: str,
+    log_every: int = 1,
+) -> RunRecord:
+    """One closed-loop run from plain arguments (what a dask worker receives).
+
+    The record carries no ``RunResult`` (it holds the robot's native models, which do not
+    pickle); its per-tick log keeps every ``log_every``-th tick.
+    """
+    from threadpoolctl import threadpool_limits
+
+    from wbcbench.bench.runner import compute_tracking
+    from wbcbench.scenarios.load import load_scenario
+
+    with threadpool_limits(1):
+        loaded = load_scenario(scenario_path, list(overrides))
+        record = compute_tracking(loaded, settings, rid, version)
+    record.result = None
+    if record.log and log_every > 1:
+        record.log = {k: v[::log_every] for k, v in record.log.items()}
+    return record
+
+
+def _arguments(job: Job, rid: str, version: str) -> tuple[Any, ...]:
+    return (
+        job.scenario_path,
+        job.overrides,
+        job.settings,
+        rid,
+        version,
+        int(job.options.get("log_every", 1)),
+    )
+
+
+class SerialExecutor:
+    """Runs one job after the other in this process (the default, and always for timing)."""
+
+    def __enter__(self) -> SerialExecutor:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        return None
+
+    def run(self, jobs: Sequence[tuple[Job, str]], version: str) -> Iterator[tuple[Job, Any]]:
+        for job, rid in jobs:
+            yield job, run_tracking(*_arguments(job, rid, version))
+
+
+class DaskExecutor:
+    """Runs jobs on a dask.distributed cluster: a local one, or the scheduler at ``address``.
+
+    The local cluster has one single-threaded worker process per core, so runs never share an
+    interpreter (MuJoCo and the solvers hold the GIL for most of a tick).
+    """
+
+    def __init__(self, address: str | None = None, n_workers: int | None = None) -> None:
+        self.address = address
+        self.n_workers = n_workers
+        self._cluster: Any = None
+        self._client: Any = None
+
+    def __enter__(self) -> DaskExecutor:
+        from dask.distributed import Client, LocalCluster
+
+        if self.address:
+            self._client = Client(self.address)
+        else:
+            self._cluster = LocalCluster(
+                n_workers=self.n_workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+            )
+            self._client = Client(self._cluster)
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if self._client is not None:
+            self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+
+    def run(self, jobs: Sequence[tuple[Job, str]], version: str) -> Iterator[tuple[Job, Any]]:
+        from dask.distributed import as_completed
+
+        futures = {}
+        for job, rid in jobs:
+            # pure=False: identical arguments must still run (a rerun after a code change)
+            future = self._client.submit(run_tracking, *_arguments(job, rid, version), pure=False)
+            futures[future] = job
+        try:
+            for future in as_completed(futures):
+                yield futures[future], future.result()
+        finally:
+            for future in futures:
+                future.cancel()
+
+
+def make_executor(name: str, scheduler: str | None = None) -> SerialExecutor | DaskExecutor:
+    """``serial`` or ``dask`` (``scheduler``: the address of an existing dask scheduler)."""
+    if name == "serial":
+        return SerialExecutor()
+    if name == "dask":
+        return DaskExecutor(scheduler)
+    raise UnknownNameError("executor", name, EXECUTORS)

@@ -1,0 +1,621 @@
+"""Sweep files: a validated matrix of scenarios × controllers × solvers × settings.
+
+A sweep file (YAML, ``version: 1``) holds lists of *matrices*. Each ``tracking`` matrix expands
+into closed-loop runs, each ``timing`` matrix into open-loop replay timing runs on recorded states;
+``solver_comparison`` compares every QP backend on the dumped QPs of replayed steps and
+``hls_scaling`` times the hierarchical least-squares algorithms against the problem size::
+
+    version: 1
+    tracking:
+      - scenarios: ["*"]            # names, paths or globs over the scenarios/ folder
+        controllers: ["*"]          # "*" = every controller that applies to the scenario
+        solvers: [default]          # default | native | all | names | globs
+        configs: {to_osf: [{}, {inverse: pinv}]}    # controller-config variants
+        set: ["duration=3"]         # scenario overrides for every scenario of the matrix
+    timing:
+      - solvers: [native]
+        modes: [cold, hot]
+        ticks: 300
+        skip: [{solver: piqp, mode: cold, reason: "interior point, 15 ms per solve"}]
+
+:func:`plan_sweep` validates everything (every scenario against its robot, every controller,
+solver, tier, mode and config override) before the first simulation step and returns the list of
+jobs; :func:`run_sweep` runs them. Every error names the sweep file and the key path.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from wbcbench.errors import ScenarioError, UnknownNameError, WbcBenchError
+from wbcbench.sim.closed_loop import RunSettings
+
+Tier = Literal["default", "low", "mid", "high"]
+Mode = Literal["cold", "warm", "hot"]
+DEFAULT_SOLVER = "proxqp"
+SWEEP_DIR = Path(__file__).resolve().parents[2] / "sweeps"
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class SkipRule(Strict):
+    """Combinations not to run, recorded as ``skipped`` rows with the reason (fnmatch patterns)."""
+
+    scenario: str = "*"
+    controller: str = "*"
+    solver: str = "*"
+    mode: str = "*"
+    tier: str = "*"
+    reason: str = Field(min_length=1)
+
+    def matches(self, scenario: str, settings: RunSettings) -> bool:
+        return all(
+            fnmatch.fnmatchcase(value, pattern)
+            for value, pattern in (
+                (scenario, self.scenario),
+                (settings.controller, self.controller),
+                (settings.solver, self.solver),
+                (settings.mode, self.mode),
+                (settings.tier, self.tier),
+            )
+        )
+
+
+class MatrixSpec(Strict):
+    """Scenarios × controllers × solvers × tiers × modes × config variants × override sets."""
+
+    scenarios: list[str] = ["*"]
+    controllers: list[str] = ["*"]
+    solvers: list[str] = ["default"]
+    tiers: list[Tier] = ["default"]
+    modes: list[Mode] = ["cold"]
+    configs: dict[str, list[dict[str, Any]]] = Field(
+        default_factory=dict,
+        description="controller → list of config overrides; each is one run (replaces {})",
+    )
+    set: list[str] = Field(default_factory=list, description="KEY=VALUE for every scenario")
+    variants: list[list[str]] = Field([[]], description="further override sets, one run each")
+    skip: list[SkipRule] = Field(default_factory=list)
+
+
+class TrackingSpec(MatrixSpec):
+    """Closed-loop runs in MuJoCo."""
+
+    log_every: int = Field(1, ge=1, description="keep every N-th tick of the per-tick log")
+
+
+class TimingSpec(MatrixSpec):
+    """Open-loop replay timing on the states of one recorded closed-loop run per scenario."""
+
+    solvers: list[str] = ["native"]
+    modes: list[Mode] = ["hot"]
+    ticks: int = Field(300, ge=1, description="replayed ticks, warm-up included")
+    warmup: int = Field(50, ge=0, description="first ticks discarded from the statistics")
+    start: float | None = Field(
+        None, ge=0, description="replay from this time [s]; default: the metrics window start"
+    )
+    record_with: list[str] = Field(
+        default_factory=lambda: ["qp_wbc"],
+        description="controllers to record the states with, first that applies wins",
+    )
+    max_step_ms: float = Field(
+        50.0, gt=0, description="abandon (skip) a combination slower than this per tick"
+    )
+    probe_ticks: int = Field(20, ge=1, description="ticks after which max_step_ms is checked")
+    check_tol: float | None = Field(
+        1e-2,
+        gt=0,
+        description="after each timed step, QPs reported solved must have a primal residual "
+        "below check_tol × the data's magnitude (None: no check)",
+    )
+
+
+class SolverComparisonSpec(Strict):
+    """Every backend on the dumped QPs of replayed steps (qpbenchmark style)."""
+
+    scenarios: list[str] = ["*"]
+    controllers: list[str] = ["*"]
+    solvers: list[str] = ["all"]
+    tiers: list[Tier] = ["default", "low", "mid", "high"]
+    modes: list[Mode] = ["cold", "warm", "hot"]
+    dump_ticks: int = Field(4, ge=1, description="consecutive ticks dumped per pair")
+    dump_after: int = Field(20, ge=0, description="replayed ticks before the first dump")
+    reference_solver: str = "clarabel"
+    max_solve_ms: float = Field(
+        250.0, gt=0, description="a solver × tier × mode slower than this once is skipped"
+    )
+    skip: list[SkipRule] = Field(default_factory=list)
+
+
+class HlsScalingSpec(Strict):
+    """RQR-HQP Fig. 1: reduced QR vs full-size QR vs SVD hierarchies against the size N."""
+
+    sizes: list[int] = [10, 20, 40, 60, 80, 100]
+    repeats: int = Field(50, ge=1)
+
+
+class SweepSpec(Strict):
+    """A sweep file."""
+
+    version: Literal[1]
+    description: str = ""
+    tracking: list[TrackingSpec] = Field(default_factory=list)
+    timing: list[TimingSpec] = Field(default_factory=list)
+    solver_comparison: SolverComparisonSpec | None = None
+    hls_scaling: HlsScalingSpec | None = None
+
+
+# -- the expanded plan
+
+
+@dataclass
+class Job:
+    """One run of the plan (a row of the results table)."""
+
+    kind: str  # tracking | timing
+    scenario_path: str
+    overrides: tuple[str, ...]
+    settings: RunSettings
+    options: dict[str, Any] = field(default_factory=dict)
+    skip_reason: str = ""
+    loaded: Any = None  # the LoadedScenario (kept in the planning process)
+
+    @property
+    def label(self) -> str:
+        s = self.settings
+        cfg = f" {json.dumps(s.controller_config, sort_keys=True)}" if s.controller_config else ""
+        return f"{self.kind} {self.loaded.name} · {s.controller}{cfg} · {s.solver} · {s.mode}"
+
+    @property
+    def extra(self) -> dict[str, Any]:
+        """Settings beyond RunSettings that make the row distinct (part of the run id)."""
+        if self.kind == "tracking":
+            return {}
+        return {"kind": self.kind, **self.options}
+
+
+@dataclass
+class SweepPlan:
+    """Validated jobs, the combinations that do not apply, and the report settings."""
+
+    file: str
+    spec: SweepSpec
+    jobs: list[Job]
+    not_applicable: list[str]
+    comparison: SolverComparisonSpec | None
+    #: (loaded scenario, controller, recording options) whose QPs the comparison dumps
+    comparison_targets: list[tuple[Any, str, dict[str, Any]]]
+    comparison_solvers: list[str]
+    timing_by_scenario: dict[str, dict[str, Any]]  # scenario key → recording options
+
+
+def load_sweep_file(path: str | Path) -> tuple[str, SweepSpec]:
+    """Read and validate a sweep file (a path, or a name in the top-level ``sweeps/``)."""
+    p = Path(path)
+    if not p.exists() and (SWEEP_DIR / f"{path}.yaml").exists():
+        p = SWEEP_DIR / f"{path}.yaml"
+    file = str(p)
+    if not p.exists():
+        valid = sorted(x.stem for x in SWEEP_DIR.glob("*.yaml"))
+        raise UnknownNameError("sweep file", file, valid, hint="or give a path to a YAML file")
+    try:
+        raw = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as exc:
+        raise ScenarioError(file, "", f"not valid YAML: {exc}") from None
+    if not isinstance(raw, dict):
+        raise ScenarioError(file, "", "a sweep file must be a mapping of keys to values")
+    from wbcbench.scenarios.load import validation_error
+
+    try:
+        return file, SweepSpec.model_validate(raw)
+    except ValidationError as exc:
+        raise validation_error(file, exc, SweepSpec) from None
+
+
+# -- name resolution
+
+
+def _is_glob(text: str) -> bool:
+    return any(ch in text for ch in "*?[")
+
+
+def resolve_scenarios(patterns: Sequence[str], file: str, key: str) -> list[str]:
+    """Scenario names or paths: globs over the scenarios/ folder, names, or file paths."""
+    from wbcbench.scenarios.load import available_scenarios, resolve_scenario_path
+
+    out: list[str] = []
+    for i, pattern in enumerate(patterns):
+        if _is_glob(pattern):
+            names = fnmatch.filter(available_scenarios(), pattern)
+            if not names:  # a file glob, e.g. my_scenarios/*.yaml
+                names = sorted(str(p) for p in Path().glob(pattern) if p.suffix == ".yaml")
+            out += [n for n in names if n not in out]
+            continue
+        try:
+            path = resolve_scenario_path(pattern)
+        except UnknownNameError as exc:
+            raise ScenarioError(file, f"{key}[{i}]", str(exc)) from None
+        name = pattern if pattern in available_scenarios() else str(path)
+        if name not in out:
+            out.append(name)
+    return out
+
+
+def resolve_controllers(patterns: Sequence[str], file: str, key: str) -> list[tuple[str, bool]]:
+    """(name, explicit) pairs; globs expand over the registry."""
+    from wbcbench.controllers.registry import available_controllers, controller_class
+
+    out: list[tuple[str, bool]] = []
+    for i, pattern in enumerate(patterns):
+        if _is_glob(pattern):
+            out += [(n, False) for n in fnmatch.filter(available_controllers(), pattern)]
+            continue
+        try:
+            controller_class(pattern)
+        except UnknownNameError as exc:
+            raise ScenarioError(file, f"{key}[{i}]", str(exc)) from None
+        out.append((pattern, True))
+    unique: dict[str, bool] = {}
+    for n, e in out:
+        unique.setdefault(n, e)
+    return list(unique.items())
+
+
+def native_solvers() -> list[str]:
+    """Installed backends that call their library directly (not through qpsolvers)."""
+    from wbcbench.qp import available_solvers
+
+    return [s for s in available_solvers() if ":" not in s]
+
+
+def default_solver() -> str:
+    native = native_solvers()
+    return DEFAULT_SOLVER if DEFAULT_SOLVER in native else native[0]
+
+
+def resolve_solvers(patterns: Sequence[str], file: str, key: str) -> list[str]:
+    """``default``, ``native``, ``all``, globs over the installed names, or names."""
+    from wbcbench.qp import available_solvers, make_solver
+
+    out: list[str] = []
+    for i, pattern in enumerate(patterns):
+        if pattern == "default":
+            names = [default_solver()]
+        elif pattern == "native":
+            names = native_solvers()
+        elif pattern == "all":
+            names = available_solvers()
+        elif _is_glob(pattern):
+            names = fnmatch.filter(available_solvers(), pattern)
+        else:
+            try:
+                make_solver(pattern)
+            except UnknownNameError as exc:
+                raise ScenarioError(
+                    file, f"{key}[{i}]", f"{exc}; or one of default, native, all"
+                ) from None
+            names = [pattern]
+        out += [n for n in names if n not in out]
+    return out
+
+
+# -- planning
+
+
+class _Scenarios:
+    """Loads each (scenario, overrides) once and checks it against its robot once."""
+
+    def __init__(self) -> None:
+        self._cache: dict[tuple[str, tuple[str, ...]], Any] = {}
+        self._robots: dict[tuple[str, str], Any] = {}
+
+    def get(self, name: str, overrides: tuple[str, ...], file: str, key: str) -> Any:
+        from wbcbench.robots.loader import load_robot
+        from wbcbench.scenarios.load import check_against_robot, load_scenario
+
+        k = (name, overrides)
+        if k not in self._cache:
+            try:
+                loaded = load_scenario(name, list(overrides))
+                rkey = (loaded.spec.robot, str(loaded.path.parent))
+                if rkey not in self._robots:
+                    self._robots[rkey] = load_robot(loaded.spec.robot, base_dir=loaded.path.parent)
+                check_against_robot(loaded, self._robots[rkey])
+            except WbcBenchError as exc:
+                raise ScenarioError(file, key, f"scenario {name!r}: {exc}") from None
+            self._cache[k] = loaded
+        return self._cache[k]
+
+
+def _config_variants(
+    matrix: MatrixSpec | SolverComparisonSpec, controller: str, loaded: Any, file: str, key: str
+) -> list[dict[str, Any]]:
+    """The config overrides of a controller, each validated against its Config model."""
+    from wbcbench.controllers.registry import controller_class
+    from wbcbench.scenarios.load import controller_settings, validation_error
+
+    variants = getattr(matrix, "configs", {}).get(controller, [{}]) or [{}]
+    cls = controller_class(controller)
+    for i, variant in enumerate(variants):
+        try:
+            cls.Config.model_validate({**controller_settings(loaded, controller), **variant})
+        except ValidationError as exc:
+            raise validation_error(
+                file, exc, cls.Config, f"{key}.configs.{controller}[{i}]"
+            ) from None
+    return variants
+
+
+def _check_config_keys(matrix: MatrixSpec, file: str, key: str) -> None:
+    from wbcbench.controllers.registry import controller_class
+
+    for name in matrix.configs:
+        try:
+            controller_class(name)
+        except UnknownNameError as exc:
+            raise ScenarioError(file, f"{key}.configs.{name}", str(exc)) from None
+
+
+def _timing_start(matrix: TimingSpec, loaded: Any) -> float:
+    """The window start: given, else the metrics window's, moved earlier to fit the run."""
+    if matrix.start is not None:
+        start = matrix.start
+    else:
+        window = loaded.spec.metrics.window
+        start = float(window[0]) if window else 0.0
+    latest = loaded.spec.duration - matrix.ticks * loaded.spec.dt
+    return round(max(0.0, min(start, latest)), 6)
+
+
+def _recorder(matrix: TimingSpec, loaded: Any, file: str, key: str) -> str:
+    """The controller that records the states: the first of record_with that applies."""
+    from wbcbench.controllers.registry import available_controllers, controller_class
+
+    for i, name in enumerate(matrix.record_with):
+        try:
+            cls = controller_class(name)
+        except UnknownNameError as exc:
+            raise ScenarioError(file, f"{key}.record_with[{i}]", str(exc)) from None
+        if not cls.applies_to(loaded.spec):
+            return name
+    for name in available_controllers():
+        if not controller_class(name).applies_to(loaded.spec):
+            return name
+    raise ScenarioError(file, key, f"no registered controller applies to {loaded.name!r}")
+
+
+def _timing_options(matrix: TimingSpec, loaded: Any, file: str, key: str) -> dict[str, Any]:
+    return dict(
+        ticks=matrix.ticks,
+        warmup=matrix.warmup,
+        start=_timing_start(matrix, loaded),
+        recorder=_recorder(matrix, loaded, file, key),
+        max_step_ms=matrix.max_step_ms,
+        probe_ticks=matrix.probe_ticks,
+        check_tol=matrix.check_tol,
+    )
+
+
+def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
+    """Expand and validate the whole matrix; nothing is simulated."""
+    from wbcbench.controllers.registry import controller_class
+
+    scenarios = _Scenarios()
+    jobs: list[Job] = []
+    not_applicable: list[str] = []
+    timing_opts: dict[str, dict[str, Any]] = {}
+    groups: list[tuple[str, str, MatrixSpec]] = [
+        *(("tracking", f"tracking[{i}]", m) for i, m in enumerate(spec.tracking)),
+        *(("timing", f"timing[{i}]", m) for i, m in enumerate(spec.timing)),
+    ]
+    for kind, key, matrix in groups:
+        _check_config_keys(matrix, file, key)
+        names = resolve_scenarios(matrix.scenarios, file, f"{key}.scenarios")
+        controllers = resolve_controllers(matrix.controllers, file, f"{key}.controllers")
+        solvers = resolve_solvers(matrix.solvers, file, f"{key}.solvers")
+        for name in names:
+            for v, variant in enumerate(matrix.variants):
+                overrides = (*matrix.set, *variant)
+                loaded = scenarios.get(name, overrides, file, f"{key}.variants[{v}]")
+                options: dict[str, Any] = {}
+                if isinstance(matrix, TimingSpec):
+                    options = _timing_options(matrix, loaded, file, key)
+                    timing_opts[f"{loaded.name}@{loaded.hash}"] = options
+                elif isinstance(matrix, TrackingSpec) and matrix.log_every != 1:
+                    options = dict(log_every=matrix.log_every)
+                for controller, explicit in controllers:
+                    reason = controller_class(controller).applies_to(loaded.spec)
+                    if reason:
+                        if explicit:
+                            not_applicable.append(f"{loaded.name} · {controller}: {reason}")
+                        continue
+                    for config in _config_variants(matrix, controller, loaded, file, key):
+                        for solver in solvers:
+                            for tier in matrix.tiers:
+                                for mode in matrix.modes:
+                                    settings = RunSettings(
+                                        controller=controller,
+                                        solver=solver,
+                                        tier=tier,
+                                        mode=mode,
+                                        controller_config=dict(config),
+                                    )
+                                    skip = next(
+                                        (
+                                            r.reason
+                                            for r in matrix.skip
+                                            if r.matches(loaded.name, settings)
+                                        ),
+                                        "",
+                                    )
+                                    jobs.append(
+                                        Job(
+                                            kind,
+                                            str(loaded.path),
+                                            overrides,
+                                            settings,
+                                            dict(options),
+                                            skip,
+                                            loaded,
+                                        )
+                                    )
+    comparison = spec.solver_comparison
+    targets: list[tuple[Any, str, dict[str, Any]]] = []
+    comp_solvers: list[str] = []
+    if comparison is not None:
+        key = "solver_comparison"
+        comp_solvers = resolve_solvers(comparison.solvers, file, f"{key}.solvers")
+        resolve_solvers([comparison.reference_solver], file, f"{key}.reference_solver")
+        names = resolve_scenarios(comparison.scenarios, file, f"{key}.scenarios")
+        controllers = resolve_controllers(comparison.controllers, file, f"{key}.controllers")
+        for name in names:
+            loaded = scenarios.get(name, (), file, f"{key}.scenarios")
+            options = timing_opts.get(f"{loaded.name}@{loaded.hash}") or _timing_options(
+                TimingSpec(), loaded, file, key
+            )
+            for controller, _ in controllers:
+                if not controller_class(controller).applies_to(loaded.spec):
+                    targets.append((loaded, controller, options))
+    return SweepPlan(
+        file, spec, jobs, not_applicable, comparison, targets, comp_solvers, timing_opts
+    )
+
+
+def plan_from_names(
+    scenarios: Sequence[str],
+    controllers: Sequence[str],
+    solvers: Sequence[str],
+    tiers: Sequence[str] = ("default",),
+    modes: Sequence[str] = ("cold",),
+    overrides: Sequence[str] = (),
+    kind: Literal["tracking", "timing"] = "tracking",
+) -> SweepPlan:
+    """A one-matrix plan from command-line names and globs (validated like a file)."""
+    raw: dict[str, Any] = {
+        "version": 1,
+        kind: [
+            {
+                "scenarios": list(scenarios),
+                "controllers": list(controllers),
+                "solvers": list(solvers),
+                "tiers": list(tiers),
+                "modes": list(modes),
+                "set": list(overrides),
+            }
+        ],
+    }
+    from wbcbench.scenarios.load import validation_error
+
+    try:
+        spec = SweepSpec.model_validate(raw)
+    except ValidationError as exc:
+        raise validation_error("command line", exc, SweepSpec) from None
+    return plan_sweep("command line", spec)
+
+
+# -- running
+
+
+@dataclass
+class SweepReport:
+    """What a sweep did: rows computed, skipped as already done, and failures."""
+
+    computed: int = 0
+    resumed: int = 0
+    failed: list[str] = field(default_factory=list)
+
+
+def run_sweep(
+    plan: SweepPlan,
+    out: str | Path,
+    executor: str = "serial",
+    scheduler: str | None = None,
+    show_progress: bool = True,
+    max_jobs: int | None = None,
+    on_row: Callable[[Job, dict[str, Any]], None] | None = None,
+) -> SweepReport:
+    """Run every job of the plan, appending each row to the store in ``out`` as it finishes.
+
+    Tracking jobs go to ``executor`` (``serial`` or ``dask``); timing jobs, the QP dumps, the
+    solver comparison and the hierarchy scaling always run serially in this process with one
+    BLAS thread. A rerun skips the rows already in ``out``. ``max_jobs`` stops after that many
+    computed rows (to test interruption).
+    """
+    from threadpoolctl import threadpool_limits
+    from tqdm import tqdm
+
+    from wbcbench.bench.executors import make_executor
+    from wbcbench.bench.results import ResultsStore
+    from wbcbench.bench.runner import code_version, run_id
+    from wbcbench.bench.timing import run_hls_scaling, run_timing_job, skipped_record
+
+    store = ResultsStore(out)
+    version = code_version(store)
+    done = store.done_run_ids()
+    report = SweepReport()
+    pending: list[tuple[Job, str]] = []
+    for job in plan.jobs:
+        rid = run_id(job.loaded, job.settings, version, extra=job.extra)
+        if rid in done:
+            report.resumed += 1
+        else:
+            pending.append((job, rid))
+    budget = [max_jobs if max_jobs is not None else len(pending) + 1]
+
+    def finished(job: Job, record: Any) -> None:
+        from wbcbench.bench.runner import store_record
+
+        store_record(store, job.loaded, record)
+        report.computed += 1
+        budget[0] -= 1
+        row = record.row
+        if row["status"] not in ("ok", "skipped"):
+            report.failed.append(f"{job.label}: {row['status']}: {row.get('message', '')}")
+        if on_row is not None:
+            on_row(job, row)
+
+    with (
+        tqdm(total=len(pending), desc="sweep", unit="run", disable=not show_progress) as bar,
+        threadpool_limits(1),
+    ):
+        for job, rid in pending:
+            if job.skip_reason:
+                if budget[0] <= 0:
+                    break
+                finished(job, skipped_record(job, rid, version, job.skip_reason))
+                bar.update()
+        tracking = [(j, r) for j, r in pending if j.kind == "tracking" and not j.skip_reason]
+        timing = [(j, r) for j, r in pending if j.kind == "timing" and not j.skip_reason]
+        if tracking and budget[0] > 0:
+            with make_executor(executor, scheduler) as ex:
+                for job, record in ex.run(tracking[: budget[0]], version):
+                    bar.set_postfix_str(job.label[:60])
+                    finished(job, record)
+                    bar.update()
+        for job, rid in timing:
+            if budget[0] <= 0:
+                break
+            bar.set_postfix_str(job.label[:60])
+            finished(job, run_timing_job(job, rid, version, store.folder))
+            bar.update()
+    if budget[0] <= 0 and max_jobs is not None:
+        return report
+    if plan.comparison is not None:
+        from wbcbench.report.solvers import run_solver_comparison
+
+        with threadpool_limits(1):
+            run_solver_comparison(plan, store.folder, show_progress=show_progress)
+    if plan.spec.hls_scaling is not None:
+        with threadpool_limits(1):
+            run_hls_scaling(plan.spec.hls_scaling, store, version)
+    return report

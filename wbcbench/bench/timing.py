@@ -1,0 +1,319 @@
+"""Timing runs: every controller × solver replays exactly the same recorded states.
+
+Protocol (DESIGN §7): the states of one closed-loop run per scenario are recorded once and cached
+next to the results (``recordings/<scenario>-<hash>-<recorder>-<end>.npz``); each controller ×
+solver × mode then steps a fresh controller through the same window of ``ticks`` states, open
+loop, serially, with one BLAS thread. The first ``warmup`` ticks are discarded. For every stage
+(``dynamics``, ``build``, ``solve``, ``solve_internal``, ``total``, and whatever further stages a
+controller reports) and every hierarchy level (``solve.<level>``): median, IQR, p99, max, mean,
+min and the deadline-miss rate at 1 kHz.
+
+After each timed step (outside the timed region) every QP the solver reported ``solved`` is
+checked independently: a primal residual above ``check_tol`` × the data's magnitude marks the
+tick failed with the message ``reported solved but …``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from wbcbench.bench.runner import RunRecord, base_row
+from wbcbench.bench.sweep import HlsScalingSpec, Job, default_solver
+from wbcbench.errors import WbcBenchError
+from wbcbench.metrics.timing import timing_stats
+from wbcbench.qp import Problem, Solution, check_solution
+from wbcbench.scenarios.load import LoadedScenario, load_scenario
+from wbcbench.sim.closed_loop import RunSettings
+from wbcbench.sim.replay import Recording, record_states, replay
+
+HLS_SCENARIO = "rqr_fig1_stack"
+
+
+class TooSlow(WbcBenchError):
+    """A combination exceeded the sweep's per-tick budget; it is recorded as skipped."""
+
+
+# -- recordings
+
+
+def recording_path(folder: Path, loaded: LoadedScenario, recorder: str, end: float) -> Path:
+    return folder / "recordings" / f"{loaded.name}-{loaded.hash}-{recorder}-{end:g}s.npz"
+
+
+def cached_recording(
+    folder: str | Path, loaded: LoadedScenario, recorder: str, start: float, ticks: int
+) -> Recording:
+    """The recorded states of ``loaded`` from ``start`` for ``ticks`` ticks (recorded once).
+
+    The closed-loop recording runs only up to the end of the window, with ``recorder`` and the
+    default solver; it is cached on disk, keyed by the scenario hash, recorder and end time.
+    """
+    end = min(loaded.spec.duration, start + ticks * loaded.spec.dt)
+    path = recording_path(Path(folder), loaded, recorder, end)
+    if path.exists():
+        rec = Recording.load(path)
+    else:
+        shortened = load_scenario(loaded.path, [*loaded.overrides, f"duration={end:.6g}"])
+        rec = record_states(shortened, RunSettings(controller=recorder, solver=default_solver()))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.npz")
+        rec.save(tmp)
+        tmp.replace(path)  # atomic: an interrupted recording leaves no half file
+    return rec.window(start, ticks)
+
+
+# -- validity of what a solver reports
+
+
+def data_scale(problem: Problem) -> float:
+    """The magnitude of a problem's data: max(1, |g|, |b|, finite |l|, |u|, |lb|, |ub|)."""
+    parts = [1.0, *(float(np.max(np.abs(v), initial=0.0)) for v in (problem.g, problem.b))]
+    for v in (problem.l, problem.u, problem.lb, problem.ub):
+        if v is not None and v.size:
+            finite = v[np.isfinite(v)]
+            parts.append(float(np.max(np.abs(finite), initial=0.0)))
+    return max(parts)
+
+
+class _Capture:
+    """A solver handle that remembers each (problem, solution) of the current step."""
+
+    def __init__(self, inner: Any, sink: list[tuple[Problem, Solution]]) -> None:
+        self._inner = inner
+        self._sink = sink
+
+    def solve(self, problem: Problem, *args: Any, **kwargs: Any) -> Solution:
+        sol = self._inner.solve(problem, *args, **kwargs)
+        self._sink.append((problem, sol))
+        return sol
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+
+def check_reported(pairs: list[tuple[Problem, Solution]], tol: float) -> str:
+    """The first QP reported solved whose primal residual exceeds ``tol`` × its data scale."""
+    for problem, sol in pairs:
+        if not sol.success:
+            continue
+        limit = tol * data_scale(problem)
+        v = check_solution(problem, sol, tol=limit, dual_tol=float("inf"))
+        if not v.ok:
+            return f"{sol.solver} reported solved but {v.message} ({problem.name or 'QP'})"
+    return ""
+
+
+# -- timing rows
+
+
+def timing_metrics(stages: dict[str, np.ndarray], warmup: int) -> list[dict[str, Any]]:
+    """Long-form statistics per stage (task ``*``) and per level (task = level name)."""
+    rows: list[dict[str, Any]] = []
+    for key, samples in stages.items():
+        stage, _, level = key.partition(".")
+        x = np.asarray(samples, dtype=float)[warmup:]
+        stats = timing_stats(x)
+        finite = x[np.isfinite(x)]
+        stats["min_us"] = 1e6 * float(finite.min()) if finite.size else float("nan")
+        for name, value in stats.items():
+            metric = f"t_{stage}_miss_rate" if name == "miss_rate" else f"t_{stage}_{name}"
+            unit = "-" if name == "miss_rate" else "us"
+            rows.append(dict(task=level or "*", metric=metric, value=value, unit=unit))
+    return rows
+
+
+def skipped_record(job: Job, rid: str, version: str, reason: str) -> RunRecord:
+    row = base_row(job.loaded, job.settings, rid, version, job.kind, job.extra)
+    row.update(status="skipped", fell=False, message=reason, ticks=0, failures=0)
+    return RunRecord(row, [], None)
+
+
+def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
+    """Replay one controller × solver × mode on the scenario's recorded window; never raises."""
+    loaded: LoadedScenario = job.loaded
+    opts = job.options
+    row = base_row(loaded, job.settings, rid, version, "timing", job.extra)
+    settings = job.settings
+    base = dict(scenario=loaded.name, controller=settings.controller, solver=settings.solver)
+    metrics: list[dict[str, Any]] = []
+    log = None
+    pairs: list[tuple[Problem, Solution]] = []
+    totals: list[float] = []
+    probe, limit = int(opts["probe_ticks"]), float(opts["max_step_ms"]) * 1e-3
+    check_tol = opts.get("check_tol")
+
+    def after_step(i: int, out: Any) -> str:
+        totals.append(out.timings.get("total", np.nan))
+        if i + 1 == probe and float(np.nanmedian(totals)) > limit:
+            raise TooSlow(
+                f"median step {1e3 * float(np.nanmedian(totals)):.1f} ms over the first "
+                f"{probe} ticks exceeds max_step_ms = {1e3 * limit:g} ms"
+            )
+        message = check_reported(pairs, check_tol) if check_tol else ""
+        pairs.clear()
+        return message
+
+    wall0 = time.perf_counter()
+    try:
+        rec = cached_recording(folder, loaded, opts["recorder"], opts["start"], opts["ticks"])
+        timings = replay(
+            loaded,
+            rec,
+            job.settings,
+            on_step=after_step,
+            wrap_solver=lambda handle: _Capture(handle, pairs),
+        )
+        warmup = min(int(opts["warmup"]), max(0, len(rec) - 1))
+        for m in timing_metrics(timings.stages, warmup):
+            metrics.append(dict(run_id=rid, **base, **m))
+        ticks = len(rec)
+        # any failed tick fails the row: its statistics stay in the metrics, the message says
+        # how many ticks failed and why
+        status = "ok" if timings.failures == 0 else "failed"
+        message = timings.message
+        if timings.failures:
+            message = f"{timings.failures} of {ticks} ticks failed; first: {message}"
+        row.update(
+            status=status,
+            fell=False,
+            message=message,
+            ticks=ticks,
+            sim_duration_s=ticks * loaded.spec.dt,
+            failures=timings.failures,
+        )
+        log = {f"time.{k}": v for k, v in timings.stages.items()}
+        log["t"] = rec.t[: len(next(iter(timings.stages.values()), []))]
+    except TooSlow as exc:
+        row.update(status="skipped", fell=False, message=str(exc), ticks=0, failures=0)
+    except WbcBenchError as exc:
+        row.update(status="error", fell=False, message=str(exc), ticks=0, failures=0)
+    except Exception as exc:  # one broken combination must not end the sweep
+        last = traceback.format_exception_only(type(exc), exc)[-1].strip()
+        row.update(status="error", fell=False, message=last, ticks=0, failures=0)
+    row["wall_time_s"] = round(time.perf_counter() - wall0, 3)
+    return RunRecord(row, metrics, None, log)
+
+
+# -- QP dumps for the solver comparison
+
+
+def dump_problems(
+    folder: str | Path,
+    loaded: LoadedScenario,
+    controller: str,
+    options: dict[str, Any],
+    after: int,
+    ticks: int,
+) -> list[Path]:
+    """Save the QPs of ``ticks`` consecutive replayed steps (after ``after`` ticks) as .npz.
+
+    Files go to ``problems/<scenario>-<hash>/<controller>/t<tick>-<k>.npz``; an existing folder
+    is reused as is. Returns the files in tick order.
+    """
+    target = Path(folder) / "problems" / f"{loaded.name}-{loaded.hash}" / controller
+    if (target / "done").exists():
+        return sorted(target.glob("t*.npz"))
+    target.mkdir(parents=True, exist_ok=True)
+    rec = cached_recording(folder, loaded, options["recorder"], options["start"], options["ticks"])
+    n = after + ticks
+    rec = Recording(rec.scenario, rec.t[:n], rec.q[:n], rec.v[:n])
+    saved: list[Path] = []
+
+    def keep(i: int, out: Any) -> str:
+        if i < after:
+            return ""
+        for k, problem in enumerate(out.problems):
+            problem.meta = {
+                **problem.meta,
+                "scenario": loaded.name,
+                "scenario_hash": loaded.hash,
+                "controller": controller,
+                "tick": i,
+                "index": k,
+            }
+            path = target / f"t{i:05d}-{k:02d}.npz"
+            problem.save(path)
+            saved.append(path)
+        return ""
+
+    settings = RunSettings(controller=controller, solver=default_solver(), mode="hot")
+    replay(loaded, rec, settings, keep_problems=True, on_step=keep)
+    (target / "done").write_text(json.dumps({"files": len(saved)}) + "\n")
+    return saved
+
+
+# -- RQR-HQP Fig. 1
+
+
+def run_hls_scaling(spec: HlsScalingSpec, store: Any, version: str) -> None:
+    """Time reduced QR vs full-size QR vs SVD hierarchies against N; one row per algorithm."""
+    import hashlib
+
+    from wbcbench.qp.hls_baselines import ALGORITHMS, scaling_series
+
+    settings = {"kind": "hls_scaling", "sizes": spec.sizes, "repeats": spec.repeats}
+    done = store.done_run_ids()
+    rows_by_algorithm: dict[str, list[dict[str, Any]]] | None = None
+    wall = 0.0
+    for algorithm in ALGORITHMS:
+        key = json.dumps([HLS_SCENARIO, algorithm, settings, version], sort_keys=True)
+        rid = hashlib.sha256(key.encode()).hexdigest()[:16]
+        if rid in done:
+            continue
+        if rows_by_algorithm is None:  # one interleaved series for all algorithms
+            t0 = time.perf_counter()
+            series = scaling_series(spec.sizes, repeats=spec.repeats)
+            wall = time.perf_counter() - t0
+            rows_by_algorithm = {}
+            for r in series:
+                rows_by_algorithm.setdefault(r["algorithm"], []).append(r)
+        base = dict(scenario=HLS_SCENARIO, controller=algorithm, solver="-")
+        metrics = []
+        for r in rows_by_algorithm.get(algorithm, []):
+            task = f"N={r['N']}"
+            for name, value in (
+                ("t_solve_median_us", 1e6 * r["median_s"]),
+                ("t_solve_p25_us", 1e6 * r["p25_s"]),
+                ("t_solve_p75_us", 1e6 * r["p75_s"]),
+            ):
+                metrics.append(
+                    dict(run_id=rid, **base, task=task, metric=name, value=value, unit="us")
+                )
+            metrics.append(
+                dict(
+                    run_id=rid,
+                    **base,
+                    task=task,
+                    metric="max_abs_diff",
+                    value=r["max_abs_diff"],
+                    unit="-",
+                )
+            )
+        row = dict(
+            run_id=rid,
+            scenario=HLS_SCENARIO,
+            scenario_hash="",
+            robot="-",
+            controller=algorithm,
+            controller_config="{}",
+            solver="-",
+            tier="-",
+            mode="-",
+            seed=0,
+            status="ok",
+            fell=False,
+            message="",
+            ticks=0,
+            wall_time_s=round(wall, 3),
+            failures=0,
+            code_version=version,
+            kind="timing",
+            settings=json.dumps(settings, sort_keys=True),
+        )
+        store.add_run(row, metrics)
