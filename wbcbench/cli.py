@@ -3,7 +3,13 @@
     wbcbench list
     wbcbench validate SCENARIO...
     wbcbench run SCENARIO [--controller NAME]... [--solver NAME]... [--out DIR] [--set KEY=VALUE]...
-    wbcbench bench [--out DIR]
+    wbcbench bench [--out DIR] [--sweep FILE] [--executor serial|dask]
+    wbcbench sweep FILE [--out DIR] [--executor serial|dask] [--scheduler ADDRESS] [--dry-run]
+    wbcbench sweep --scenario GLOB... --controller GLOB... --solver NAME... [--timing]
+    wbcbench tables RESULTS_DIR      paper tables (Markdown + CSV) in RESULTS_DIR/tables
+    wbcbench plots RESULTS_DIR       figures (PNG + SVG) in RESULTS_DIR/figures
+    wbcbench solvers RESULTS_DIR     the solver report RESULTS_DIR/solver_report.md
+    wbcbench replay PROBLEM.npz [--solver NAME]... [--tier T] [--mode M]
 
 Errors a user can cause print one line (``error: …``) and exit with status 2; no traceback.
 """
@@ -140,19 +146,16 @@ def _print_table(table: pd.DataFrame) -> None:
         print(table.to_string(index=False, float_format=lambda x: f"{x:.4g}"))
 
 
-DEFAULT_SOLVER = "proxqp"
-
-
 def native_solvers() -> list[str]:
-    """Installed backends that call their library directly (not through qpsolvers)."""
-    from wbcbench.qp import available_solvers
+    from wbcbench.bench.sweep import native_solvers as native
 
-    return [s for s in available_solvers() if ":" not in s]
+    return native()
 
 
 def default_solver() -> str:
-    native = native_solvers()
-    return DEFAULT_SOLVER if DEFAULT_SOLVER in native else native[0]
+    from wbcbench.bench.sweep import default_solver as default
+
+    return default()
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -170,30 +173,145 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0 if (table["status"] == "ok").all() else 1
 
 
-def _cmd_bench(args: argparse.Namespace) -> int:
-    from wbcbench.controllers.registry import available_controllers
-    from wbcbench.scenarios.load import available_scenarios
+def _run_plan(plan, args: argparse.Namespace, out: Path) -> int:
+    from wbcbench.bench.sweep import run_sweep
 
-    scenarios = _load_checked(args.scenario or available_scenarios())
-    controllers = args.controller or available_controllers()
-    solvers = args.solver or native_solvers()
-    _check_names(controllers, solvers, args.tier, args.mode)
-    out = Path(args.out)
-    table = _run_matrix(
-        scenarios, controllers, solvers, args.tier, args.mode, out, not args.no_progress
+    print(f"{len(plan.jobs)} runs planned ({plan.file})")
+    for line in plan.not_applicable:
+        print(f"  not applicable: {line}")
+    if args.dry_run:
+        for job in plan.jobs:
+            print(f"  {job.label}" + (f"  [skip: {job.skip_reason}]" if job.skip_reason else ""))
+        return 0
+    report = run_sweep(
+        plan,
+        out,
+        executor=args.executor,
+        scheduler=args.scheduler,
+        show_progress=not args.no_progress,
     )
-    _print_table(table)
+    print(f"{report.computed} rows computed, {report.resumed} already in {out} (resumed)")
+    for line in report.failed:
+        print(f"  failed: {line}")
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from wbcbench.bench.sweep import load_sweep_file, plan_from_names, plan_sweep
+
+    if args.file:
+        if args.scenario or args.controller or args.solver:
+            raise WbcBenchError("give a sweep FILE or --scenario/--controller/--solver, not both")
+        plan = plan_sweep(*load_sweep_file(args.file))
+    else:
+        plan = plan_from_names(
+            args.scenario or ["*"],
+            args.controller or ["*"],
+            args.solver or (["native"] if args.timing else ["default"]),
+            [args.tier],
+            [args.mode],
+            args.set,
+            kind="timing" if args.timing else "tracking",
+        )
+    return _run_plan(plan, args, Path(args.out))
+
+
+def write_reports(out: Path) -> None:
+    """Summary, paper tables, solver report and figures of a results folder."""
+    from wbcbench.bench.results import ResultsStore
+    from wbcbench.report.plots import write_plots
+    from wbcbench.report.solvers import write_report
+    from wbcbench.report.tables import write_tables
+
+    store = ResultsStore(out)
+    runs = store.runs()
+    table = summary_table(runs[runs["kind"] == "tracking"], store.metrics())
     summary = out / "summary.md"
     summary.write_text(
         "# wbcbench results\n\n"
         "Closed-loop runs: one row per scenario × controller × solver. Errors are the mean "
         "tracking-error norms over each scenario's metric window; times are medians over the run "
-        "in microseconds (see provenance.json for the machine).\n\n"
-        + table.to_markdown(index=False, floatfmt=".4g")
+        "in microseconds (see provenance.json for the machine). Open-loop timing: "
+        "`tables/papers.md`; solvers: `solver_report.md`; figures: `figures/`.\n\n"
+        + (table.to_markdown(index=False, floatfmt=".4g") if not table.empty else "(no runs)")
         + "\n"
     )
-    print(f"results in {out}/ (summary.md, runs.csv, metrics.csv, logs/, provenance.json)")
+    print(f"tables: {write_tables(out)}")
+    print(f"solver report: {write_report(out)}")
+    print(f"figures: {len(write_plots(out))} files in {out / 'figures'}")
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from wbcbench.bench.sweep import load_sweep_file, plan_sweep
+
+    out = Path(args.out)
+    if args.scenario or args.controller or args.solver:
+        # the former matrix form: closed-loop runs of the named combinations
+        from wbcbench.controllers.registry import available_controllers
+        from wbcbench.scenarios.load import available_scenarios
+
+        scenarios = _load_checked(args.scenario or available_scenarios())
+        controllers = args.controller or available_controllers()
+        solvers = args.solver or native_solvers()
+        _check_names(controllers, solvers, args.tier, args.mode)
+        table = _run_matrix(
+            scenarios, controllers, solvers, args.tier, args.mode, out, not args.no_progress
+        )
+        _print_table(table)
+    else:
+        plan = plan_sweep(*load_sweep_file(args.sweep))
+        _run_plan(plan, args, out)
+        if args.dry_run:
+            return 0
+    write_reports(out)
+    print(f"results in {out}/ (summary.md, runs.csv, metrics.csv, tables/, figures/, ...)")
     return 0
+
+
+def _cmd_tables(args: argparse.Namespace) -> int:
+    from wbcbench.report.tables import write_tables
+
+    path = write_tables(_results_dir(args.results))
+    print(path.read_text() if args.print else f"tables in {path.parent}/")
+    return 0
+
+
+def _cmd_plots(args: argparse.Namespace) -> int:
+    from wbcbench.report.plots import write_plots
+
+    paths = write_plots(_results_dir(args.results))
+    print(f"{len(paths)} figure files in {Path(args.results) / 'figures'}/")
+    return 0
+
+
+def _cmd_solvers(args: argparse.Namespace) -> int:
+    from wbcbench.report.solvers import write_report
+
+    print(f"solver report: {write_report(_results_dir(args.results))}")
+    return 0
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from wbcbench.qp.settings import check_mode, check_tier
+    from wbcbench.report.solvers import describe_problem, replay_problem
+
+    path = Path(args.problem)
+    if not path.exists():
+        raise WbcBenchError(f"{path}: no such problem file")
+    check_tier(args.tier)
+    check_mode(args.mode)
+    solvers = args.solver or native_solvers()
+    _check_names([], solvers, args.tier, args.mode)
+    print(describe_problem(path))
+    _print_table(replay_problem(path, solvers, args.tier, args.mode))
+    return 0
+
+
+def _results_dir(path: str) -> Path:
+    folder = Path(path)
+    if not folder.is_dir():
+        raise WbcBenchError(f"{folder}: no such results folder")
+    return folder
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -231,10 +349,53 @@ def build_parser() -> argparse.ArgumentParser:
     run_options(p, "results/run")
     p.set_defaults(func=_cmd_run)
 
-    p = sub.add_parser("bench", help="every scenario × controller × installed solver")
+    def sweep_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--executor",
+            default="serial",
+            choices=["serial", "dask"],
+            help="where closed-loop runs execute (timing runs are always serial)",
+        )
+        p.add_argument(
+            "--scheduler",
+            metavar="ADDRESS",
+            help="address of an existing dask scheduler (default: a local cluster)",
+        )
+        p.add_argument("--dry-run", action="store_true", help="validate and list the runs only")
+
+    p = sub.add_parser("bench", help="the default sweep, then tables, solver report and figures")
     p.add_argument("--scenario", action="append", metavar="NAME")
+    p.add_argument("--sweep", default="sweeps/default.yaml", metavar="FILE")
     run_options(p, "results")
+    sweep_options(p)
     p.set_defaults(func=_cmd_bench)
+
+    p = sub.add_parser("sweep", help="run a sweep file (or a matrix of names and globs)")
+    p.add_argument("file", nargs="?", metavar="FILE")
+    p.add_argument("--scenario", action="append", metavar="GLOB")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--timing", action="store_true", help="open-loop replay timing runs")
+    run_options(p, "results")
+    sweep_options(p)
+    p.set_defaults(func=_cmd_sweep)
+
+    for name, func, text in (
+        ("tables", _cmd_tables, "paper tables beside ours (Markdown + CSV)"),
+        ("plots", _cmd_plots, "figures (PNG + SVG)"),
+        ("solvers", _cmd_solvers, "the QP solver comparison report"),
+    ):
+        p = sub.add_parser(name, help=text)
+        p.add_argument("results", metavar="RESULTS_DIR")
+        if name == "tables":
+            p.add_argument("--print", action="store_true", help="print the tables")
+        p.set_defaults(func=func)
+
+    p = sub.add_parser("replay", help="solve a dumped QP (.npz) again with one or more solvers")
+    p.add_argument("problem", metavar="PROBLEM.npz")
+    p.add_argument("--solver", action="append", metavar="NAME")
+    p.add_argument("--tier", default="default")
+    p.add_argument("--mode", default="cold")
+    p.set_defaults(func=_cmd_replay)
     return parser
 
 

@@ -1,0 +1,267 @@
+"""Figures a reader of the papers expects, from a results folder (PNG and SVG, Agg backend).
+
+* ``tracking_<scenario>``: tracking-error norms over time per task, one line per controller;
+* ``amendments_<scenario>``: TO-OSF amendment norms ``‖ẍ_opt − ẍ*‖`` per task;
+* ``time_vs_size``: median step time against the number of tasks, contacts and DoF;
+* ``levels``: mean QP time per hierarchy level and controller;
+* ``timing_solvers``: median step time per controller and solver;
+* ``solvers_success`` / ``solvers_time``: the solver comparison;
+* ``rqr_fig1``: hierarchy time against the problem size N.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from wbcbench.report.load import Results, load_results
+from wbcbench.tasks.tasks import ERROR_UNITS
+
+MAX_POINTS = 800  # per line: keeps the SVG files small
+
+
+def _save(fig: Any, out: Path, name: str) -> list[Path]:
+    fig.tight_layout()
+    paths = [out / f"{name}.png", out / f"{name}.svg"]
+    for p in paths:
+        fig.savefig(p, dpi=110)
+    plt.close(fig)
+    return paths
+
+
+def _label(row: pd.Series) -> str:
+    cfg = row.get("controller_config", "{}")
+    cfg = "" if pd.isna(cfg) or cfg == "{}" else f" {cfg}"
+    return f"{row['controller']}{cfg} ({row['solver']})"
+
+
+def _thin(df: pd.DataFrame) -> pd.DataFrame:
+    step = max(1, len(df) // MAX_POINTS)
+    return df.iloc[::step]
+
+
+def tracking_figures(res: Results, out: Path) -> list[Path]:
+    paths: list[Path] = []
+    runs = res.of_kind("tracking")
+    if runs.empty:
+        return paths
+    for scenario, group in runs.groupby("scenario"):
+        logs = [(row, res.log(row["run_id"])) for _, row in group.iterrows()]
+        logs = [(r, lg) for r, lg in logs if not lg.empty]
+        if not logs:
+            continue
+        err_cols = sorted({c for _, lg in logs for c in lg.columns if c.startswith("err.")})
+        if err_cols:
+            fig, axes = plt.subplots(
+                len(err_cols), 1, figsize=(7, 1.8 * len(err_cols) + 0.6), sharex=True, squeeze=False
+            )
+            for ax, col in zip(axes[:, 0], err_cols, strict=True):
+                task, part = col.split(".")[1:3]
+                for row, lg in logs:
+                    if col in lg.columns:
+                        d = _thin(lg)
+                        ax.plot(d["t"], d[col], label=_label(row), lw=1)
+                ax.set_ylabel(f"{task} {part}\n[{ERROR_UNITS.get(part, '-')}]")
+                ax.grid(alpha=0.3)
+            axes[-1, 0].set_xlabel("time [s]")
+            axes[0, 0].legend(fontsize=7, loc="upper right")
+            fig.suptitle(f"Tracking-error norms — {scenario}", fontsize=10)
+            paths += _save(fig, out, f"tracking_{scenario}")
+        amend = sorted({c for _, lg in logs for c in lg.columns if c.startswith("diag.amend.")})
+        if amend:
+            fig, ax = plt.subplots(figsize=(7, 3))
+            for row, lg in logs:
+                d = _thin(lg)
+                for c in amend:
+                    if c in d.columns:
+                        ax.plot(
+                            d["t"],
+                            d[c],
+                            lw=1,
+                            label=f"{c.removeprefix('diag.amend.')} — {_label(row)}",
+                        )
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel("‖ẍ_opt − ẍ*‖ [m/s² or rad/s²]")
+            ax.set_title(f"Task-acceleration amendments — {scenario}", fontsize=10)
+            ax.legend(fontsize=6)
+            ax.grid(alpha=0.3)
+            paths += _save(fig, out, f"amendments_{scenario}")
+    return paths
+
+
+def _timing_table(res: Results) -> pd.DataFrame:
+    """Timing runs with their mean total and the scenario's size (tasks, contacts, DoF)."""
+    from wbcbench.report.tables import _robot_dof, scenario_spec
+
+    runs = res.of_kind("timing")
+    if runs.empty or res.metrics.empty:
+        return pd.DataFrame()
+    runs = runs[runs["robot"] != "-"]
+    m = res.metrics[(res.metrics["task"] == "*")]
+    med = m[m["metric"] == "t_total_median_us"].set_index("run_id")["value"]
+    rows = []
+    for _, r in runs.iterrows():
+        if r["run_id"] not in med.index:
+            continue
+        spec = scenario_spec(res, r["scenario"])
+        rows.append(
+            {
+                **r.to_dict(),
+                "median_us": float(med.loc[r["run_id"]]),
+                "tasks": len(spec.tasks) if spec else np.nan,
+                "contacts": len(spec.contacts) if spec else np.nan,
+                "dof": _robot_dof(str(r["robot"])),
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def size_figures(res: Results, out: Path) -> list[Path]:
+    t = _timing_table(res)
+    if t.empty:
+        return []
+    from wbcbench.bench.sweep import default_solver
+
+    t = (
+        t[(t["solver"] == default_solver()) & (t["mode"] == "hot")]
+        if (t["mode"] == "hot").any()
+        else t
+    )
+    fig, axes = plt.subplots(1, 3, figsize=(11, 3.4), sharey=True)
+    for ax, (col, label) in zip(
+        axes,
+        (("tasks", "number of tasks"), ("contacts", "number of contacts"), ("dof", "actuated DoF")),
+        strict=True,
+    ):
+        for controller, g in t.groupby("controller"):
+            series = g.groupby(col)["median_us"].median().sort_index()
+            ax.plot(series.index, series.to_numpy() / 1e3, "o-", label=controller)
+        ax.set_xlabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("median step time [ms]")
+    axes[-1].legend(fontsize=7)
+    fig.suptitle(
+        f"Compute time vs problem size ({default_solver()}, open-loop replay)", fontsize=10
+    )
+    return _save(fig, out, "time_vs_size")
+
+
+def level_figure(res: Results, out: Path) -> list[Path]:
+    runs = res.of_kind("timing")
+    if runs.empty:
+        return []
+    m = res.metrics[
+        res.metrics["run_id"].isin(runs["run_id"]) & (res.metrics["metric"] == "t_solve_mean_us")
+    ]
+    m = m[m["task"] != "*"]
+    if m.empty:
+        return []
+    from wbcbench.report.tables import _pick_timing
+
+    picked = _pick_timing(runs[runs["run_id"].isin(m["run_id"])], "qpoases")
+    m = m[m["run_id"].isin(picked["run_id"])]
+    labels = [f"{r.scenario}\n{r.controller}" for r in picked.itertuples()]
+    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(labels)), 3.6))
+    bottom = np.zeros(len(picked))
+    levels = sorted(m["task"].astype(str).unique())
+    for level in levels:
+        vals = np.array(
+            [
+                float(m[(m["run_id"] == rid) & (m["task"] == level)]["value"].sum()) / 1e3
+                for rid in picked["run_id"]
+            ]
+        )
+        ax.bar(labels, vals, bottom=bottom, label=level)
+        bottom += vals
+    ax.set_ylabel("mean QP time per level [ms]")
+    ax.set_title("Per-level QP solve time (stacked)", fontsize=10)
+    ax.legend(fontsize=7, ncol=2)
+    ax.tick_params(axis="x", labelsize=7)
+    return _save(fig, out, "levels")
+
+
+def timing_solver_figure(res: Results, out: Path) -> list[Path]:
+    t = _timing_table(res)
+    if t.empty:
+        return []
+    t = t.assign(label=t["controller"] + " · " + t["mode"])
+    pivot = (
+        t.pivot_table(index="label", columns="solver", values="median_us", aggfunc="median") / 1e3
+    )
+    fig, ax = plt.subplots(figsize=(max(6, 0.9 * len(pivot) + 3), 3.6))
+    pivot.plot.bar(ax=ax, logy=True)
+    ax.set_ylabel("median step time [ms] (log)")
+    ax.set_xlabel("controller · mode")
+    ax.axhline(1.0, color="k", lw=0.8, ls="--", label="1 kHz budget")
+    ax.set_title(
+        "Open-loop replay: median step time per solver (median over scenarios)", fontsize=10
+    )
+    ax.legend(fontsize=6, ncol=3)
+    return _save(fig, out, "timing_solvers")
+
+
+def solver_figures(res: Results, out: Path) -> list[Path]:
+    from wbcbench.report.solvers import summarize
+
+    s = summarize(res.qp_solves)
+    if s.empty:
+        return []
+    paths = []
+    s = s.assign(label=s["tier"] + " · " + s["mode"])
+    for value, name, ylabel, logy in (
+        ("success [%]", "solvers_success", "valid solutions [%]", False),
+        ("wall sgm [µs]", "solvers_time", "shifted geometric mean of solve time [µs] (log)", True),
+    ):
+        pivot = s.pivot_table(index="solver", columns="label", values=value, aggfunc="first")
+        fig, ax = plt.subplots(figsize=(max(7, 0.6 * len(pivot) + 4), 3.8))
+        pivot.plot.bar(ax=ax, logy=logy)
+        ax.set_ylabel(ylabel)
+        ax.set_xlabel("solver")
+        ax.set_title("QP solvers on whole-body-control problems", fontsize=10)
+        ax.legend(fontsize=6, ncol=3, title="tier · mode", title_fontsize=7)
+        paths += _save(fig, out, name)
+    return paths
+
+
+def hls_figure(res: Results, out: Path) -> list[Path]:
+    from wbcbench.report.tables import rqr_fig1
+
+    table = rqr_fig1(res)
+    if table.frame is None:
+        return []
+    f = table.frame
+    fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    for col in [c for c in f.columns if c.endswith("median [µs]")]:
+        ax.plot(f["N"], f[col], "o-", label=col.split(" ")[0])
+    ax.set_xlabel("problem size N [variables]")
+    ax.set_ylabel("median time [µs]")
+    ax.set_yscale("log")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title("Hierarchy solve time vs N (RQR-HQP Fig. 1)", fontsize=10)
+    return _save(fig, out, "rqr_fig1")
+
+
+def write_plots(folder: str | Path) -> list[Path]:
+    """Every figure the results allow, into ``<folder>/figures``."""
+    res = load_results(folder)
+    out = Path(folder) / "figures"
+    out.mkdir(exist_ok=True)
+    paths: list[Path] = []
+    for fn in (
+        tracking_figures,
+        size_figures,
+        level_figure,
+        timing_solver_figure,
+        solver_figures,
+        hls_figure,
+    ):
+        paths += fn(res, out)
+    return paths
