@@ -7,11 +7,13 @@ subclass, add one line to ``CONTROLLERS`` below; the registry sweep test picks i
 from __future__ import annotations
 
 from wbcbench.controllers.base import Controller, ControllerConfig, ControllerContext
+from wbcbench.controllers.kin_hqp import KinHqp
 from wbcbench.controllers.qp_wbc import QpWbc
 from wbcbench.errors import UnknownNameError
 
 CONTROLLERS: dict[str, type[Controller]] = {
     QpWbc.name: QpWbc,
+    KinHqp.name: KinHqp,
 }
 
 
