@@ -1,0 +1,234 @@
+"""Conventional lexicographic QP (LQP) on the full model (RC-LQP paper §2 and §4.1, Table 1).
+
+Variables x = (q̈ (n), f (6c)); the torque is eliminated through the actuated rows of the
+dynamics (eq. 6–7), Γ = M_a q̈ + h_a − J_c,aᵀ f. Priorities (Table 1):
+
+1. ``dynamics``: the floating-base rows M_u q̈ + h_u − J_c,uᵀ f = 0 (6 eq) and the torque limits
+   −Γ_max ≤ Γ ≤ Γ_max (2k ineq);
+2. ``contacts``: stationary contacts J_c q̈ + J̇_c q̇ = 0 (6c eq), the contact-wrench inequalities
+   (CoP, friction pyramid, yaw, normal force) and the joint-acceleration limits (2k ineq);
+3. … the scenario's tasks, one level per distinct ``priority`` (priority 1 = Table 1's level 3:
+   CoM position and pelvis orientation; priority 2 = level 4: end-effector poses);
+
+then the acceleration energy ½ q̈ᵀ M q̈ (eq. 27) as the final objective, with a small
+‖f‖² term so that double-support wrenches are unique. Every level is a soft LQP level (eq. 26):
+minimal slacks, held by the levels below. Solved by the sequential method (``nullspace``), a
+cascade of full QPs (``cascade``) or one weighted QP (``weighted``), see
+:mod:`wbcbench.qp.hierarchy`.
+
+f is the reaction on the robot (see :mod:`wbcbench.dynamics.state`): the paper's F_c is −f.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Literal
+
+import numpy as np
+import scipy.linalg
+from pydantic import Field
+
+from wbcbench.controllers.base import (
+    Controller,
+    ControllerConfig,
+    ControllerContext,
+    ControlOutput,
+    StageTimer,
+)
+from wbcbench.dynamics.state import RobotState
+from wbcbench.qp.base import QPSolver
+from wbcbench.qp.hierarchy import (
+    Constraints,
+    HierarchyResult,
+    Objective,
+    PriorityLevel,
+    solve_hierarchy,
+)
+from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.tasks import TaskTerm
+
+
+class LqpConfig(ControllerConfig):
+    """Settings of the conventional LQP."""
+
+    strategy: Literal["nullspace", "cascade", "weighted"] = Field(
+        "nullspace",
+        description="sequential null-space method (the paper's), cascade of full QPs, or one "
+        "weighted QP",
+    )
+    qdd_limit: float = Field(
+        300.0, gt=0, description="joint-acceleration limit |q̈_j| of actuated joints [rad/s²]"
+    )
+    wrench_regularization: float = Field(
+        1e-4, gt=0, description="weight of ‖f‖² next to q̈ᵀ M q̈ in the final objective"
+    )
+    weights: list[float] = Field(
+        [1e6, 1e4, 1e2, 1.0],
+        description="weighted strategy only: weight per level (dynamics, contacts, task "
+        "priorities 1, 2, …; the last one repeats)",
+    )
+    final_weight: float = Field(
+        1e-4, gt=0, description="weighted strategy only: weight of the final objective"
+    )
+
+
+# -- pieces shared with the reduced-centroidal LQP ---------------------------------------------
+
+
+def task_levels(terms: list[TaskTerm]) -> list[tuple[int, list[TaskTerm]]]:
+    """Tasks grouped by priority, highest (1) first."""
+    levels: dict[int, list[TaskTerm]] = {}
+    for term in terms:
+        levels.setdefault(term.task.priority, []).append(term)
+    return sorted(levels.items())
+
+
+def energy_objective(name: str, M: np.ndarray, n_extra: int, reg: float) -> Objective:
+    """Final objective ‖Lᵀ q̈‖² + reg ‖f‖² = q̈ᵀ M q̈ + reg ‖f‖², with M = L Lᵀ (Cholesky)."""
+    n = M.shape[0]
+    L = scipy.linalg.cholesky(M, lower=True, check_finite=False)
+    F = np.zeros((n + n_extra, n + n_extra))
+    F[:n, :n] = L.T
+    F[n:, n:] = np.sqrt(reg) * np.eye(n_extra)
+    return Objective(name, F, np.zeros(n + n_extra))
+
+
+def level_weight(weights: list[float], i: int) -> float:
+    return weights[min(i, len(weights) - 1)]
+
+
+class SolverPool:
+    """One solver handle per hierarchy level, created on first use and kept across ticks."""
+
+    def __init__(self, ctx: ControllerContext) -> None:
+        self.ctx = ctx
+        self.handles: list[QPSolver] = []
+
+    def get(self, count: int) -> list[QPSolver]:
+        while len(self.handles) < count:
+            self.handles.append(self.ctx.new_solver())
+        return self.handles[:count]
+
+
+def slack_diagnostics(result: HierarchyResult, prefix: str = "") -> dict[str, float]:
+    """‖w‖ and ‖v‖ of every level (the optimal slacks: 0 when the level is met)."""
+    out: dict[str, float] = {}
+    for lv in result.levels:
+        out[f"{prefix}w.{lv.name}"] = float(np.linalg.norm(lv.w)) if lv.w.size else 0.0
+        out[f"{prefix}v.{lv.name}"] = float(np.linalg.norm(lv.v)) if lv.v.size else 0.0
+    return out
+
+
+def failed_output(
+    n: int, k: int, nc: int, terms: list[TaskTerm], timings: dict[str, float], message: str
+) -> ControlOutput:
+    return ControlOutput(
+        tau=np.zeros(k),
+        qdd=np.zeros(n),
+        wrench=np.zeros(nc),
+        terms=terms,
+        timings=timings,
+        ok=False,
+        message=message,
+    )
+
+
+# -- the controller ----------------------------------------------------------------------------
+
+
+class Lqp(Controller):
+    """Conventional full-model LQP of RC-LQP Table 1 (the baseline of ``rc_lqp``)."""
+
+    name = "lqp"
+    summary = (
+        "conventional lexicographic QP on the full model (RC-LQP Table 1), (q̈, f) with torque "
+        "eliminated; sequential null-space, cascade or weighted"
+    )
+    Config = LqpConfig
+    config: LqpConfig
+
+    def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
+        super().__init__(ctx, config)
+        self.frames = ctx.contact_frames
+        self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
+        self.nc = 6 * len(self.frames)
+        self.pool = SolverPool(ctx)
+        self.last: HierarchyResult | None = None
+
+    def hierarchy(
+        self, state: RobotState, terms: list[TaskTerm]
+    ) -> tuple[list[PriorityLevel], Objective, np.ndarray, np.ndarray]:
+        """The levels and final objective over x = (q̈, f), and the torque map Γ = G x + γ."""
+        cfg = self.config
+        n, k, nc = state.n, state.k, self.nc
+        nx = n + nc
+        M, h = state.M, state.h
+        Jc = state.contact_jacobian(self.frames)
+        dJc = state.contact_drift(self.frames)
+        tau_max = self.ctx.tau_max
+        G = np.hstack([M[6:], -Jc[:, 6:].T])
+        gamma = h[6:]
+        dyn = PriorityLevel(
+            "dynamics",
+            A=np.hstack([M[:6], -Jc[:, :6].T]),
+            b=-h[:6],
+            C=G,
+            l=-tau_max - gamma,
+            u=tau_max - gamma,
+        )
+        nw = self.Cw.shape[0]
+        C2 = np.zeros((nw + k, nx))
+        C2[:nw, n:] = self.Cw
+        C2[nw:, 6:n] = np.eye(k)
+        qdd_max = np.full(k, cfg.qdd_limit)
+        contacts = PriorityLevel(
+            "contacts",
+            A=np.hstack([Jc, np.zeros((nc, nc))]),
+            b=-dJc,
+            C=C2,
+            l=np.concatenate([self.lw, -qdd_max]),
+            u=np.concatenate([self.uw, qdd_max]),
+        )
+        levels = [dyn, contacts]
+        for p, group in task_levels(terms):
+            J = np.vstack([t.J for t in group])
+            r = np.concatenate([t.acc_ref - t.drift for t in group])
+            levels.append(PriorityLevel(f"p{p}", A=np.hstack([J, np.zeros((J.shape[0], nc))]), b=r))
+        for i, lv in enumerate(levels):
+            lv.weight = level_weight(cfg.weights, i)
+        final = energy_objective("energy", M, nc, cfg.wrench_regularization)
+        final.weight = cfg.final_weight
+        return levels, final, G, gamma
+
+    def step(self, state: RobotState, t: float) -> ControlOutput:
+        timer = StageTimer(state)
+        cfg = self.config
+        n, k, nc = state.n, state.k, self.nc
+        terms = self.evaluate_tasks(state, t)
+        levels, final, G, gamma = self.hierarchy(state, terms)
+        t0 = time.perf_counter()
+        result = solve_hierarchy(
+            Constraints(n + nc),
+            levels,
+            [final],
+            cfg.strategy,
+            self.pool.get(len(levels) + 1),
+            timer,
+        )
+        t_solve = time.perf_counter() - t0
+        self.last = result
+        if not result.ok:
+            return failed_output(n, k, nc, terms, timer.finish(), result.message)
+        x = result.x
+        tau = G @ x + gamma
+        timings = timer.finish()
+        timings["hierarchy"] = t_solve
+        return ControlOutput(
+            tau=tau,
+            qdd=x[:n].copy(),
+            wrench=x[n:].copy(),
+            terms=terms,
+            timings=timings,
+            iterations=timer.iterations,
+            diagnostics=slack_diagnostics(result),
+        )

@@ -1,0 +1,402 @@
+"""Reduced-centroidal LQP (RC-LQP paper §3–4): two sequential lexicographic QPs.
+
+The unconstrained chains (arms, neck, a swing leg, …) are collapsed into their 6-D centroidal
+coordinates (:mod:`wbcbench.dynamics.reduced`), which splits the conventional LQP of
+:mod:`wbcbench.controllers.lqp` in two:
+
+**LQP 1** over x₁ = (q̈_r (n_r), f (6c)), the priorities of Table 1 on the reduced model:
+
+1. ``dynamics``: the top six rows of eq. (14) — exactly the floating-base Newton–Euler equations —
+   and the torque limits of the constraint chain (its rows of eq. 14);
+2. ``contacts``: J_c,r q̈_r + J̇_c q̇ = 0 (eq. 15), the wrench inequalities and the constraint
+   chain's joint-acceleration limits;
+3. … the task rows expressible through q̈_r (J N_r = 0, §3.4.1: CoM, pelvis, constraint-chain
+   frames), one level per priority; final: q̈_rᵀ M_r q̈_r (eq. 28) + a small ‖f‖².
+
+**LQP 2** over x₂ = q̈_uc (every chain joint):
+
+1. ``coupling``: eq. (30), J_G q̈_uc + J̇_G q̇ = q̈*_r,G, with the chains' torque and joint-
+   acceleration limits;
+2. … the remaining task rows (hands, swing foot, …) with the base and constraint-chain
+   accelerations of LQP 1 moved to the right-hand side (the paper's base-relative reference);
+   final: q̈_ucᵀ M_uc q̈_uc (eq. 29).
+
+Torque assembly (``assembly``):
+
+* ``exact``: the actuated rows of the full inverse dynamics at the combined (q̈, f). Because
+  eq. (30) holds, the floating-base rows hold too (a chain motion that keeps the chain's
+  centroidal acceleration leaves the base's Newton–Euler rows unchanged), so the robot realises
+  LQP 1's q̈_r and LQP 2's q̈_uc.
+* ``paper``: Γ_cc from the constraint-chain rows of eq. (14) (equal to the exact ones) and Γ_uc
+  from each chain's fixed-base dynamics, eq. (17), which leaves out the chain's coupling with the
+  base's and the constraint chain's acceleration.
+
+With ``coupling_priority`` (the paper's optional extra priority, §4.2), LQP 2 first puts eq. (30)
+*below* its task levels; when that leaves a violation, the centroidal acceleration LQP 2 reached
+becomes an extra priority of LQP 1 (after its task levels), and both are solved again.
+
+Timings (Table 3): ``reduced`` (the reduced-dynamics calculation), ``lqp1``, ``lqp2`` (each
+formulation + solve), ``solve.lqp1`` / ``solve.lqp2`` (solver only) and per level
+``solve.lqp1.<level>``. Diagnostics: ``coupling_residual`` (eq. 30), ``base_residual``
+(floating-base rows of the full dynamics at the combined solution), ``assembly_diff``
+(max |Γ_exact − Γ_paper| [N·m]) and each level's optimal slacks.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from wbcbench.controllers.base import (
+    Controller,
+    ControllerConfig,
+    ControllerContext,
+    ControlOutput,
+    StageTimer,
+)
+from wbcbench.controllers.lqp import (
+    SolverPool,
+    energy_objective,
+    failed_output,
+    level_weight,
+    slack_diagnostics,
+    task_levels,
+)
+from wbcbench.dynamics.chains import CENTROID_DIM, split_chains
+from wbcbench.dynamics.reduced import ReducedDynamics, ReducedModel
+from wbcbench.dynamics.state import RobotState
+from wbcbench.qp.hierarchy import Constraints, HierarchyResult, PriorityLevel, solve_hierarchy
+from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.tasks import TaskTerm
+
+
+class RcLqpConfig(ControllerConfig):
+    """Settings of the reduced-centroidal LQP."""
+
+    strategy: Literal["nullspace", "cascade", "weighted"] = Field(
+        "nullspace", description="how each of the two LQPs is solved (see lqp)"
+    )
+    assembly: Literal["exact", "paper"] = Field(
+        "exact",
+        description="torque from the full inverse dynamics at the combined solution, or the "
+        "paper's reduced-model + fixed-base chain torques (eq. 14, 17)",
+    )
+    coupling_priority: bool = Field(
+        False,
+        description="eq. (30) below LQP 2's tasks, its violation fed back to LQP 1 as an extra "
+        "priority (paper §4.2)",
+    )
+    diagnostics: bool = Field(
+        True, description="compute the consistency diagnostics (costs one RNEA per tick)"
+    )
+    qdd_limit: float = Field(300.0, gt=0, description="joint-acceleration limit [rad/s²]")
+    wrench_regularization: float = Field(1e-4, gt=0, description="weight of ‖f‖² in LQP 1")
+    weights: list[float] = Field(
+        [1e6, 1e4, 1e2, 1.0],
+        description="weighted strategy only: weight per level of each LQP (last one repeats)",
+    )
+    final_weight: float = Field(1e-4, gt=0, description="weighted strategy: final objective")
+    coupling_tol: float = Field(
+        1e-6, gt=0, description="coupling_priority: eq. (30) violation that triggers re-solving"
+    )
+
+
+@dataclass
+class _RowSplit:
+    """Which rows of each task LQP 1 handles (reducible) and which LQP 2 does."""
+
+    lqp1: dict[str, np.ndarray]
+    lqp2: dict[str, np.ndarray]
+
+
+class RcLqp(Controller):
+    """Reduced-centroidal LQP: LQP 1 on the reduced model, LQP 2 on the unconstrained chains."""
+
+    name = "rc_lqp"
+    summary = (
+        "reduced-centroidal LQP (RC-LQP): arms/neck/swing leg collapsed into centroidal "
+        "dynamics, two sequential lexicographic QPs, exact or paper torque assembly"
+    )
+    Config = RcLqpConfig
+    config: RcLqpConfig
+
+    def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
+        super().__init__(ctx, config)
+        self.frames = ctx.contact_frames
+        self.split = split_chains(ctx.robot.pin_model, self.frames)
+        self.reduced = ReducedDynamics(ctx.robot.pin_model, self.split)
+        self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
+        self.nc = 6 * len(self.frames)
+        self.pool1 = SolverPool(ctx)
+        self.pool2 = SolverPool(ctx)
+        self.pool1b = SolverPool(ctx)
+        self.pool2b = SolverPool(ctx)
+        self._rows: _RowSplit | None = None
+        self.last: tuple[HierarchyResult, HierarchyResult | None] | None = None
+        self.last_reduced: ReducedModel | None = None
+        # actuated indices (into Γ) of the plain coordinates and of the chains
+        self._act_plain = self.split.plain[6:] - 6
+        self._act_uc = self.split.unconstrained - 6
+
+    # -- task rows ------------------------------------------------------------------------------
+
+    def _classify(self, red: ReducedModel, terms: list[TaskTerm]) -> _RowSplit:
+        """Rows with J N_r = 0 go to LQP 1, the others to LQP 2 (decided once: structural)."""
+        lqp1, lqp2 = {}, {}
+        for term in terms:
+            mask = red.reducible_rows(term.J)
+            lqp1[term.task.name] = np.flatnonzero(mask)
+            lqp2[term.task.name] = np.flatnonzero(~mask)
+        return _RowSplit(lqp1, lqp2)
+
+    # -- LQP 1 ----------------------------------------------------------------------------------
+
+    def lqp1_levels(
+        self, state: RobotState, red: ReducedModel, terms: list[TaskTerm]
+    ) -> tuple[list[PriorityLevel], np.ndarray, np.ndarray]:
+        """LQP 1's levels over x₁ = (q̈_r, f) and the constraint-chain torque map Γ_p = G x₁ + γ."""
+        cfg = self.config
+        assert self._rows is not None
+        nc, n_r, n_p = self.nc, self.split.n_reduced, red.n_plain
+        nx = n_r + nc
+        nl = red.b_r + red.g_r
+        dJc = state.contact_drift(self.frames)
+        G = np.hstack([red.M_r[6:n_p], -red.J_cr[:, 6:n_p].T])
+        gamma = nl[6:n_p]
+        tau_max = self.ctx.tau_max[self._act_plain]
+        levels = [
+            PriorityLevel(
+                "dynamics",
+                A=np.hstack([red.M_r[:6], -red.J_cr[:, :6].T]),
+                b=-nl[:6],
+                C=G,
+                l=-tau_max - gamma,
+                u=tau_max - gamma,
+            )
+        ]
+        nw = self.Cw.shape[0]
+        n_act = n_p - 6
+        C2 = np.zeros((nw + n_act, nx))
+        C2[:nw, n_r:] = self.Cw
+        C2[nw:, 6:n_p] = np.eye(n_act)
+        qdd_max = np.full(n_act, cfg.qdd_limit)
+        levels.append(
+            PriorityLevel(
+                "contacts",
+                A=np.hstack([red.J_cr, np.zeros((nc, nc))]),
+                b=-dJc,
+                C=C2,
+                l=np.concatenate([self.lw, -qdd_max]),
+                u=np.concatenate([self.uw, qdd_max]),
+            )
+        )
+        for p, group in task_levels(terms):
+            rows = [(t, self._rows.lqp1[t.task.name]) for t in group]
+            rows = [(t, r) for t, r in rows if r.size]
+            if not rows:
+                continue
+            J = np.vstack([t.J[r] for t, r in rows])
+            drift = np.concatenate([t.drift[r] for t, r in rows])
+            ref = np.concatenate([t.acc_ref[r] for t, r in rows])
+            Jr, drift_r = red.task(J, drift)
+            A = np.hstack([Jr, np.zeros((Jr.shape[0], nc))])
+            levels.append(PriorityLevel(f"p{p}", A=A, b=ref - drift_r))
+        return levels, G, gamma
+
+    def solve_lqp1(
+        self,
+        state: RobotState,
+        red: ReducedModel,
+        levels: list[PriorityLevel],
+        pool: SolverPool,
+        timer: StageTimer,
+    ) -> HierarchyResult:
+        cfg = self.config
+        nx = self.split.n_reduced + self.nc
+        for i, lv in enumerate(levels):
+            lv.weight = level_weight(cfg.weights, i)
+            lv.name = lv.name if lv.name.startswith("lqp1.") else f"lqp1.{lv.name}"
+        final = energy_objective("lqp1.energy", red.M_r, self.nc, cfg.wrench_regularization)
+        final.weight = cfg.final_weight
+        handles = pool.get(len(levels) + 1)
+        return solve_hierarchy(Constraints(nx), levels, [final], cfg.strategy, handles, timer)
+
+    # -- LQP 2 ----------------------------------------------------------------------------------
+
+    def lqp2_levels(
+        self,
+        state: RobotState,
+        red: ReducedModel,
+        terms: list[TaskTerm],
+        x1: np.ndarray,
+        coupling_last: bool,
+    ) -> tuple[list[PriorityLevel], np.ndarray, np.ndarray]:
+        """LQP 2's levels over q̈_uc and the chains' torque map Γ_uc = M_uc q̈_uc + γ_uc."""
+        cfg = self.config
+        assert self._rows is not None
+        split = self.split
+        plain, uc = split.plain, split.unconstrained
+        n_p, n_uc = red.n_plain, uc.size
+        qdd_plain = x1[:n_p]
+        target_G = x1[n_p : split.n_reduced]
+        if cfg.assembly == "exact":
+            gamma = state.M[np.ix_(uc, plain)] @ qdd_plain + state.h[uc]
+        else:
+            gamma = red.b_uc + red.g_uc
+        M_uc = red.M_uc
+        tau_max = self.ctx.tau_max[self._act_uc]
+        qdd_max = np.full(n_uc, cfg.qdd_limit)
+        coupling = PriorityLevel(
+            "coupling",
+            A=red.J_G,
+            b=target_G - red.dJG_v,
+            C=np.vstack([M_uc, np.eye(n_uc)]),
+            l=np.concatenate([-tau_max - gamma, -qdd_max]),
+            u=np.concatenate([tau_max - gamma, qdd_max]),
+        )
+        levels: list[PriorityLevel] = []
+        if coupling_last:
+            # the limits stay at the top, eq. (30) goes below the tasks
+            levels.append(
+                PriorityLevel("limits", C=coupling.C, l=coupling.l, u=coupling.u),
+            )
+        else:
+            levels.append(coupling)
+        for p, group in task_levels(terms):
+            rows = [(t, self._rows.lqp2[t.task.name]) for t in group]
+            rows = [(t, r) for t, r in rows if r.size]
+            if not rows:
+                continue
+            J = np.vstack([t.J[r] for t, r in rows])
+            ref = np.concatenate([t.acc_ref[r] - t.drift[r] for t, r in rows])
+            # base-relative reference: LQP 1's base and constraint-chain accelerations are known
+            b = ref - J[:, plain] @ qdd_plain
+            levels.append(PriorityLevel(f"p{p}", A=J[:, uc], b=b))
+        if coupling_last:
+            levels.append(PriorityLevel("coupling", A=coupling.A, b=coupling.b))
+        return levels, M_uc, gamma
+
+    def solve_lqp2(
+        self, red: ReducedModel, levels: list[PriorityLevel], pool: SolverPool, timer: StageTimer
+    ) -> HierarchyResult:
+        cfg = self.config
+        for i, lv in enumerate(levels):
+            lv.weight = level_weight(cfg.weights, i)
+            lv.name = lv.name if lv.name.startswith("lqp2.") else f"lqp2.{lv.name}"
+        final = energy_objective("lqp2.energy", red.M_uc, 0, cfg.wrench_regularization)
+        final.weight = cfg.final_weight
+        handles = pool.get(len(levels) + 1)
+        n_uc = red.M_uc.shape[0]
+        return solve_hierarchy(Constraints(n_uc), levels, [final], cfg.strategy, handles, timer)
+
+    # -- the step -------------------------------------------------------------------------------
+
+    def step(self, state: RobotState, t: float) -> ControlOutput:
+        timer = StageTimer(state)
+        cfg = self.config
+        split = self.split
+        n, k, nc = state.n, state.k, self.nc
+        n_r, plain, uc = split.n_reduced, split.plain, split.unconstrained
+        n_p = plain.size
+        terms = self.evaluate_tasks(state, t)
+        red = self.reduced.compute(state, fixed_base=cfg.assembly == "paper" or cfg.diagnostics)
+        self.last_reduced = red
+        if self._rows is None:
+            self._rows = self._classify(red, terms)
+
+        t1 = time.perf_counter()
+        levels1, G1, gamma1 = self.lqp1_levels(state, red, terms)
+        res1 = self.solve_lqp1(state, red, levels1, self.pool1, timer)
+        t_lqp1 = time.perf_counter() - t1
+        if not res1.ok:
+            return failed_output(n, k, nc, terms, timer.finish(), "LQP 1: " + res1.message)
+        x1 = res1.x
+
+        res2: HierarchyResult | None = None
+        t_lqp2 = 0.0
+        extra: dict[str, float] = {}
+        if uc.size:
+            t2 = time.perf_counter()
+            levels2, _, _ = self.lqp2_levels(state, red, terms, x1, cfg.coupling_priority)
+            res2 = self.solve_lqp2(red, levels2, self.pool2, timer)
+            t_lqp2 += time.perf_counter() - t2
+            if res2.ok and cfg.coupling_priority:
+                w = res2.levels[-1].w  # eq. (30)'s violation
+                extra["coupling_violation"] = float(np.linalg.norm(w))
+                if np.linalg.norm(w) > cfg.coupling_tol:
+                    # LQP 1 again, the centroidal acceleration LQP 2 reached as an extra priority
+                    t1 = time.perf_counter()
+                    reached = x1[n_p:n_r] + w
+                    sel = np.zeros((n_r - n_p, n_r + nc))
+                    sel[:, n_p:n_r] = np.eye(n_r - n_p)
+                    levels1b, G1, gamma1 = self.lqp1_levels(state, red, terms)
+                    levels1b.append(PriorityLevel("coupling", A=sel, b=reached))
+                    res1 = self.solve_lqp1(state, red, levels1b, self.pool1b, timer)
+                    t_lqp1 += time.perf_counter() - t1
+                    if not res1.ok:
+                        msg = "LQP 1 (coupling): " + res1.message
+                        return failed_output(n, k, nc, terms, timer.finish(), msg)
+                    x1 = res1.x
+                    t2 = time.perf_counter()
+                    levels2, _, _ = self.lqp2_levels(state, red, terms, x1, False)
+                    res2 = self.solve_lqp2(red, levels2, self.pool2b, timer)
+                    t_lqp2 += time.perf_counter() - t2
+            if not res2.ok:
+                return failed_output(n, k, nc, terms, timer.finish(), "LQP 2: " + res2.message)
+
+        # combined solution
+        qdd = np.zeros(n)
+        qdd[plain] = x1[:n_p]
+        f = x1[n_r:]
+        if res2 is not None:
+            qdd[uc] = res2.x
+        Jc = state.contact_jacobian(self.frames)
+        tau_exact = state.M[6:] @ qdd + state.h[6:] - Jc[:, 6:].T @ f
+        tau = tau_exact
+        diag: dict[str, float] = {}
+        if cfg.assembly == "paper" or cfg.diagnostics:
+            tau_paper = np.empty(k)
+            tau_paper[self._act_plain] = G1 @ x1 + gamma1
+            if uc.size:
+                tau_paper[self._act_uc] = red.M_uc @ qdd[uc] + red.b_uc + red.g_uc
+            if cfg.assembly == "paper":
+                tau = tau_paper
+            diag["assembly_diff"] = float(np.abs(tau_exact - tau_paper).max())
+        if cfg.diagnostics:
+            base = state.M[:6] @ qdd + state.h[:6] - Jc[:, :6].T @ f
+            diag["base_residual"] = float(np.abs(base).max())
+            if uc.size:
+                realized = red.J_G @ qdd[uc] + red.dJG_v
+                diag["coupling_residual"] = float(np.abs(realized - x1[n_p:n_r]).max())
+            diag.update(slack_diagnostics(res1))
+            if res2 is not None:
+                diag.update(slack_diagnostics(res2))
+        diag.update(extra)
+        self.last = (res1, res2)
+
+        timings = timer.finish()
+        timings["reduced"] = red.time
+        timings["lqp1"] = t_lqp1
+        timings["lqp2"] = t_lqp2
+        for part in ("lqp1", "lqp2"):
+            keys = [key for key in timings if key.startswith(f"solve.{part}.")]
+            timings[f"solve.{part}"] = sum(timings[key] for key in keys)
+        return ControlOutput(
+            tau=tau,
+            qdd=qdd,
+            wrench=f.copy(),
+            terms=terms,
+            timings=timings,
+            iterations=timer.iterations,
+            diagnostics=diag,
+        )
+
+    @property
+    def centroid_rows(self) -> slice:
+        """Rows of q̈_r holding the chains' centroidal accelerations."""
+        n_p = self.split.plain.size
+        return slice(n_p, n_p + CENTROID_DIM * len(self.split.chains))
