@@ -8,11 +8,15 @@ from __future__ import annotations
 
 from wbcbench.controllers.base import Controller, ControllerConfig, ControllerContext
 from wbcbench.controllers.kin_hqp import KinHqp
+from wbcbench.controllers.lqp import Lqp
 from wbcbench.controllers.qp_wbc import QpWbc
+from wbcbench.controllers.rc_lqp import RcLqp
 from wbcbench.errors import UnknownNameError
 
 CONTROLLERS: dict[str, type[Controller]] = {
     QpWbc.name: QpWbc,
+    Lqp.name: Lqp,
+    RcLqp.name: RcLqp,
     KinHqp.name: KinHqp,
 }
 
