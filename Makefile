@@ -5,7 +5,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv test test-fast lint bench bench-micro models clean
+.PHONY: venv test test-fast lint bench bench-full bench-micro reference models clean
 
 venv: $(STAMP)
 
@@ -26,11 +26,25 @@ lint: $(STAMP)
 models: $(STAMP)
 	$(PY) -m wbcbench.robots.generator
 
-bench: $(STAMP)
-	$(VENV)/bin/wbcbench bench --out results
+# Closed-loop tracking runs go to a local dask cluster (one worker per core); timing runs are
+# always serial. BENCH_EXECUTOR=serial runs everything in one process.
+BENCH_EXECUTOR ?= dask
 
+bench: $(STAMP)
+	$(VENV)/bin/wbcbench bench --sweep sweeps/default.yaml --out results --executor $(BENCH_EXECUTOR)
+
+bench-full: $(STAMP)
+	$(VENV)/bin/wbcbench bench --sweep sweeps/full.yaml --out results/full --executor $(BENCH_EXECUTOR)
+
+# the micro-benchmarks are bench_*.py files: name them for pytest explicitly
 bench-micro: $(STAMP)
-	$(PY) -m pytest -q benchmarks --benchmark-enable --benchmark-only
+	$(PY) -m pytest -q benchmarks -o python_files="bench_*.py" --benchmark-enable --benchmark-only
+
+# the small curated results the notebooks and the report tests read (results/reference/)
+reference: $(STAMP)
+	rm -rf results/reference
+	$(VENV)/bin/wbcbench bench --sweep sweeps/reference.yaml --out results/reference --executor serial --no-progress
+	rm -rf results/reference/recordings results/reference/problems results/reference/*.parquet
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
