@@ -147,5 +147,9 @@ def replay(
             failures += 1
             message = message or f"tick {i}: {problem}"
         for stage, value in out.timings.items():
-            columns.setdefault(stage, []).append(value)
+            # a stage first reported at tick i (e.g. a level that appears later) gets NaN before
+            columns.setdefault(stage, [float("nan")] * i).append(value)
+        for stage, values in columns.items():
+            if len(values) == i:  # a stage this tick did not report
+                values.append(float("nan"))
     return ReplayTimings({k: np.asarray(v) for k, v in columns.items()}, failures, message)
