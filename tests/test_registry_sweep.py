@@ -15,9 +15,19 @@ from wbcbench.scenarios.load import build_contacts, build_tasks, load_scenario, 
 
 from .conftest import random_standing_state
 
+DYNAMIC = "tocabi_stand_sway"
+#: velocity-level controllers do not apply to torque scenarios: they step on a kinematic one
+KINEMATIC = "rqr_reach"
 
-def context(robot: Robot, solver: str) -> ControllerContext:
-    loaded = load_scenario("tocabi_stand_sway")
+
+def applicable(scenario: str) -> list[str]:
+    """Registered controllers whose ``applies_to`` accepts the scenario."""
+    spec = load_scenario(scenario).spec
+    return sorted(name for name, cls in CONTROLLERS.items() if not cls.applies_to(spec))
+
+
+def context(robot: Robot, solver: str, scenario: str = DYNAMIC) -> ControllerContext:
+    loaded = load_scenario(scenario)
     return ControllerContext(
         robot=robot,
         tasks=build_tasks(loaded.spec, robot),
@@ -29,7 +39,7 @@ def context(robot: Robot, solver: str) -> ControllerContext:
 
 
 @pytest.mark.parametrize("solver", available_solvers())
-@pytest.mark.parametrize("name", sorted(CONTROLLERS))
+@pytest.mark.parametrize("name", applicable(DYNAMIC))
 def test_build_and_step(tocabi: Robot, name: str, solver: str) -> None:
     controller = make_controller(name, context(tocabi, solver))
     q0, v0 = tocabi.keyframe("stand")
@@ -47,7 +57,28 @@ def test_build_and_step(tocabi: Robot, name: str, solver: str) -> None:
         assert out.timings["total"] >= out.timings["solve"]
 
 
+@pytest.mark.parametrize("name", applicable(KINEMATIC))
+def test_velocity_controller_steps_on_a_kinematic_scenario(tocabi: Robot, name: str) -> None:
+    """Velocity-level controllers return a finite q̇ command (n,) and their stage timings."""
+    assert set(applicable(DYNAMIC)) | set(applicable(KINEMATIC)) == set(CONTROLLERS)
+    controller = make_controller(name, context(tocabi, "proxqp", KINEMATIC))
+    q0, v0 = tocabi.keyframe("stand")
+    controller.start(RobotState(tocabi, q0, v0))
+    rng = np.random.default_rng(0)
+    for tick in range(3):
+        q, v = random_standing_state(tocabi, rng, q_noise=0.01, v_noise=0.05)
+        out = controller.step(RobotState(tocabi, q, v), 5e-3 * tick)
+        assert out.ok, out.message
+        assert out.qd is not None and out.qd.shape == (tocabi.nv,)
+        assert np.all(np.isfinite(out.qd))
+        for stage in ("dynamics", "build", "solve", "total"):
+            assert out.timings[stage] >= 0.0
+        assert out.timings["total"] >= out.timings["solve"]
+
+
 def test_unknown_controller_lists_valid_names(tocabi: Robot) -> None:
     with pytest.raises(UnknownNameError) as exc:
         make_controller("nosuch", context(tocabi, "proxqp"))
-    assert str(exc.value).startswith("unknown controller 'nosuch'; valid choices: qp_wbc")
+    message = str(exc.value)
+    assert message.startswith("unknown controller 'nosuch'; valid choices: ")
+    assert "kin_hqp" in message and "qp_wbc" in message
