@@ -149,7 +149,7 @@ def replay(
         for stage, value in out.timings.items():
             # a stage first reported at tick i (e.g. a level that appears later) gets NaN before
             columns.setdefault(stage, [float("nan")] * i).append(value)
-        for stage, values in columns.items():
+        for values in columns.values():
             if len(values) == i:  # a stage this tick did not report
                 values.append(float("nan"))
     return ReplayTimings({k: np.asarray(v) for k, v in columns.items()}, failures, message)
