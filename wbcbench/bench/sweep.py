@@ -92,6 +92,12 @@ class TrackingSpec(MatrixSpec):
     """Closed-loop runs in MuJoCo."""
 
     log_every: int = Field(1, ge=1, description="keep every N-th tick of the per-tick log")
+    max_duration: float | None = Field(
+        None,
+        gt=0,
+        description="shorten longer scenarios to this [s] (their metrics window moves inside "
+        "the run); for quick sweeps, never for reproducing a paper's window",
+    )
 
 
 class TimingSpec(MatrixSpec):
@@ -394,6 +400,17 @@ def _recorder(matrix: TimingSpec, loaded: Any, file: str, key: str) -> str:
     raise ScenarioError(file, key, f"no registered controller applies to {loaded.name!r}")
 
 
+def _shorten(spec: Any, cap: float) -> tuple[str, ...]:
+    """Overrides that cut a scenario to ``cap`` seconds, moving its metrics window inside."""
+    if spec.duration <= cap:
+        return ()
+    out = [f"duration={cap:g}"]
+    window = spec.metrics.window
+    if window is not None and window[1] > cap:
+        out.append(f"metrics.window=[{min(window[0], cap / 2):g}, {cap:g}]")
+    return tuple(out)
+
+
 def _timing_options(matrix: TimingSpec, loaded: Any, file: str, key: str) -> dict[str, Any]:
     return dict(
         ticks=matrix.ticks,
@@ -427,6 +444,11 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
             for v, variant in enumerate(matrix.variants):
                 overrides = (*matrix.set, *variant)
                 loaded = scenarios.get(name, overrides, file, f"{key}.variants[{v}]")
+                if isinstance(matrix, TrackingSpec) and matrix.max_duration is not None:
+                    extra = _shorten(loaded.spec, matrix.max_duration)
+                    if extra:
+                        overrides = (*overrides, *extra)
+                        loaded = scenarios.get(name, overrides, file, f"{key}.max_duration")
                 options: dict[str, Any] = {}
                 if isinstance(matrix, TimingSpec):
                     options = _timing_options(matrix, loaded, file, key)
@@ -575,7 +597,12 @@ def run_sweep(
     def finished(job: Job, record: Any) -> None:
         from wbcbench.bench.runner import store_record
 
-        store_record(store, job.loaded, record)
+        try:
+            store_record(store, job.loaded, record)
+        except Exception as exc:  # e.g. an unwritable log: keep the row, say what was lost
+            record.log = None
+            record.row["message"] = f"{record.row.get('message') or ''} (log not saved: {exc})"
+            store_record(store, job.loaded, record)
         report.computed += 1
         budget[0] -= 1
         row = record.row

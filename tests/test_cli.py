@@ -1,0 +1,51 @@
+"""The command line: sweep, tables, plots, solvers, replay."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from wbcbench.cli import main
+
+
+def test_sweep_dry_run_validates_the_default_and_full_sweeps(capsys) -> None:
+    for sweep in ("sweeps/default.yaml", "sweeps/full.yaml"):
+        assert main(["sweep", sweep, "--dry-run", "--out", "unused"]) == 0
+        assert "runs planned" in capsys.readouterr().out
+
+
+def test_a_bad_sweep_file_is_one_line_and_status_2(tmp_path: Path, capsys) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("version: 1\ntracking:\n  - solvers: [nope]\n")
+    assert main(["sweep", str(bad), "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {bad}: tracking[0].solvers[0]: unknown solver 'nope'")
+
+
+def test_sweep_from_globs_then_reports_and_replay(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "res"
+    args = ["sweep", "--scenario", "tocabi_*", "--controller", "qp_wbc", "--solver", "daqp"]
+    args += ["--set", "duration=0.05", "--out", str(out), "--no-progress"]
+    assert main(args) == 0
+    runs = pd.read_csv(out / "runs.csv")
+    assert list(runs["solver"]) == ["daqp"] and list(runs["kind"]) == ["tracking"]
+    assert main(args) == 0
+    assert "0 rows computed, 1 already in" in capsys.readouterr().out
+    assert main(["tables", str(out)]) == 0
+    assert (out / "tables" / "papers.md").exists()
+    assert main(["solvers", str(out)]) == 0
+    assert "No solver comparison" in (out / "solver_report.md").read_text()
+    assert main(["plots", str(out)]) == 0
+    assert (out / "figures" / "tracking_tocabi_stand_sway.png").exists()
+    assert main(["tables", str(tmp_path / "nowhere")]) == 2
+
+
+def test_replay_solves_a_dumped_problem_again(tmp_path: Path, capsys) -> None:
+    from wbcbench.qp.examples import random_qp
+
+    path = tmp_path / "p.npz"
+    random_qp(1, n=12, n_eq=4, n_in=6).save(path)
+    assert main(["replay", str(path), "--solver", "daqp", "--solver", "proxqp"]) == 0
+    printed = capsys.readouterr().out
+    assert "daqp" in printed and "proxqp" in printed and "solved" in printed

@@ -1,0 +1,203 @@
+"""Sweeps: validation before running, resume after an interruption, failures as rows, dask."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from wbcbench.bench.sweep import load_sweep_file, plan_sweep, run_sweep
+from wbcbench.errors import ScenarioError
+from wbcbench.qp import Solution, SolutionStatus
+
+TINY = """\
+version: 1
+tracking:
+  - scenarios: [tocabi_stand_sway]
+    controllers: [qp_wbc]
+    solvers: [{tracking_solvers}]
+    set: ["duration=0.06", "metrics.window=[0.0, 0.06]", "metrics.timing_warmup=5"]
+timing:
+  - scenarios: [tocabi_stand_sway]
+    controllers: [qp_wbc]
+    solvers: [{timing_solvers}]
+    modes: [cold]
+    ticks: 12
+    warmup: 2
+    probe_ticks: 5
+    set: ["duration=0.3"]
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "sweep.yaml") -> str:
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def tiny(tmp_path: Path, tracking: str = "proxqp, daqp", timing: str = "proxqp, daqp") -> str:
+    return write(tmp_path, TINY.format(tracking_solvers=tracking, timing_solvers=timing))
+
+
+def plan(path: str):
+    return plan_sweep(*load_sweep_file(path))
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "words"),
+    [
+        ("version: 1\ntracking:\n  - scenario: [x]\n", "tracking[0].scenario", ["unknown key"]),
+        (
+            "version: 1\ntracking:\n  - controllers: [nope]\n",
+            "tracking[0].controllers[0]",
+            ["unknown controller 'nope'", "qp_wbc"],
+        ),
+        (
+            "version: 1\ntiming:\n  - solvers: [proxqp, nope]\n",
+            "timing[0].solvers[1]",
+            ["unknown solver 'nope'", "proxqp", "native"],
+        ),
+        (
+            "version: 1\ntracking:\n  - modes: [tepid]\n",
+            "tracking[0].modes[0]",
+            ["'cold'", "'hot'"],
+        ),
+        (
+            "version: 1\ntracking:\n  - scenarios: [tocabi_stand_sway]\n    set: [duratoin=3]\n",
+            "tracking[0].variants[0]",
+            ["tocabi_stand_sway", "duratoin"],
+        ),
+        (
+            "version: 1\ntracking:\n  - scenarios: [tocabi_stand_sway]\n"
+            "    configs: {qp_wbc: [{variables: half}]}\n",
+            "tracking[0].configs.qp_wbc[0].variables",
+            ["'full'", "'eliminated'"],
+        ),
+        (
+            "version: 1\ntracking:\n  - scenarios: [no_such]\n",
+            "tracking[0].scenarios[0]",
+            ["no_such"],
+        ),
+    ],
+)
+def test_a_bad_sweep_file_names_the_file_the_key_and_the_choices(
+    tmp_path: Path, text: str, key: str, words: list[str]
+) -> None:
+    path = write(tmp_path, text)
+    with pytest.raises(ScenarioError) as err:
+        plan(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: {key}:"), message
+    for word in words:
+        assert word in message
+
+
+def test_every_controller_that_applies_is_planned_and_skips_are_recorded(tmp_path: Path) -> None:
+    from wbcbench.controllers.registry import CONTROLLERS
+    from wbcbench.scenarios.load import load_scenario
+
+    path = write(
+        tmp_path,
+        "version: 1\ntiming:\n  - scenarios: [tocabi_stand_sway]\n    solvers: [proxqp, daqp]\n"
+        "    skip: [{solver: daqp, reason: not today}]\n",
+    )
+    p = plan(path)
+    spec = load_scenario("tocabi_stand_sway").spec
+    applies = {n for n, cls in CONTROLLERS.items() if not cls.applies_to(spec)}
+    assert {j.settings.controller for j in p.jobs} == applies
+    assert {(j.settings.solver, j.skip_reason) for j in p.jobs} == {
+        ("proxqp", ""),
+        ("daqp", "not today"),
+    }
+
+
+def final_table(out: Path) -> pd.DataFrame:
+    """Rows by run id; tracking metrics exact, timing metrics by name only (times vary)."""
+    runs = pd.read_csv(out / "runs.csv").set_index("run_id").sort_index()
+    metrics = pd.read_csv(out / "metrics.csv")
+    tracking = metrics[metrics["run_id"].isin(runs.index[runs["kind"] == "tracking"])]
+    tracking = tracking[tracking["metric"].str.startswith("err")]
+    tracking = tracking.assign(col=tracking["task"] + ":" + tracking["metric"])
+    errors = tracking.pivot_table(index="run_id", columns="col", values="value")
+    names = metrics.groupby("run_id")["metric"].apply(lambda m: ",".join(sorted(set(m))))
+    table = runs[["kind", "controller", "solver", "status", "ticks"]].join(names)
+    return table.join(errors)
+
+
+def test_an_interrupted_sweep_resumes_without_losing_or_repeating_rows(tmp_path: Path) -> None:
+    path = tiny(tmp_path)
+    complete, interrupted = tmp_path / "complete", tmp_path / "interrupted"
+    run_sweep(plan(path), complete, show_progress=False)
+
+    first = run_sweep(plan(path), interrupted, show_progress=False, max_jobs=2)
+    assert first.computed == 2
+    kept = pd.read_csv(interrupted / "runs.csv")
+    assert len(kept) == 2
+    second = run_sweep(plan(path), interrupted, show_progress=False)
+    assert second.resumed == 2 and second.computed == 2
+    after = pd.read_csv(interrupted / "runs.csv")
+    # the finished rows are untouched and none is computed twice
+    pd.testing.assert_frame_equal(after.iloc[:2], kept)
+    assert after["run_id"].is_unique
+    pd.testing.assert_frame_equal(final_table(interrupted), final_table(complete))
+    # a third run has nothing left to do
+    assert run_sweep(plan(path), interrupted, show_progress=False).computed == 0
+
+
+def test_a_solver_that_raises_or_lies_becomes_a_failure_row(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from wbcbench.qp.backends.daqp import DAQPSolver
+    from wbcbench.qp.backends.quadprog import QuadprogSolver
+
+    def raises(self, problem, guess, keep):
+        raise RuntimeError("injected backend crash")
+
+    def lies(self, problem, guess, keep):
+        return Solution(SolutionStatus.SOLVED, x=np.zeros(problem.n), message="optimal")
+
+    monkeypatch.setattr(DAQPSolver, "_solve_fresh", raises)
+    monkeypatch.setattr(QuadprogSolver, "_solve_fresh", lies)
+    text = TINY.format(tracking_solvers="daqp, proxqp", timing_solvers="quadprog, proxqp")
+    text = text.replace("duration=0.06", "duration=0.05") + (
+        "solver_comparison:\n  scenarios: [tocabi_stand_sway]\n  controllers: [qp_wbc]\n"
+        "  solvers: [quadprog, proxqp]\n  tiers: [default]\n  modes: [cold]\n"
+        "  dump_ticks: 1\n  dump_after: 1\n"
+    )
+    report = run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
+    runs = pd.read_csv(tmp_path / "out" / "runs.csv").set_index(["kind", "solver"])
+    crash = runs.loc[("tracking", "daqp")]
+    assert crash["status"] == "failed"
+    assert "RuntimeError: injected backend crash" in crash["message"]
+    lie = runs.loc[("timing", "quadprog")]
+    assert lie["status"] == "failed"
+    assert "quadprog reported solved but primal residual" in lie["message"]
+    # the sweep went on: the healthy solver's rows are there and fine
+    assert runs.loc[("tracking", "proxqp"), "status"] == "ok"
+    assert runs.loc[("timing", "proxqp"), "status"] == "ok"
+    assert len(report.failed) == 2
+    solves = pd.read_csv(tmp_path / "out" / "qp_solves.csv").set_index("solver")
+    assert not solves.loc["quadprog", "valid"]
+    assert solves.loc["quadprog", "message"].startswith("reported solved but primal residual")
+    assert solves.loc["proxqp", "valid"]
+
+
+def test_dask_and_serial_executors_give_the_same_tracking_numbers(tmp_path: Path) -> None:
+    path = tiny(tmp_path, tracking="proxqp, daqp")
+    run_sweep(plan_tracking_only(path), tmp_path / "serial", show_progress=False)
+    run_sweep(plan_tracking_only(path), tmp_path / "dask", executor="dask", show_progress=False)
+    a = pd.read_csv(tmp_path / "serial" / "metrics.csv")
+    b = pd.read_csv(tmp_path / "dask" / "metrics.csv")
+    key = ["run_id", "task", "metric"]
+    a = a[a["metric"].str.startswith("err")].sort_values(key).reset_index(drop=True)
+    b = b[b["metric"].str.startswith("err")].sort_values(key).reset_index(drop=True)
+    assert len(a) > 0
+    pd.testing.assert_frame_equal(a, b)
+
+
+def plan_tracking_only(path: str):
+    p = plan(path)
+    p.jobs = [j for j in p.jobs if j.kind == "tracking"]
+    return p
