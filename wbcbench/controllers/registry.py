@@ -7,6 +7,7 @@ subclass, add one line to ``CONTROLLERS`` below; the registry sweep test picks i
 from __future__ import annotations
 
 from wbcbench.controllers.base import Controller, ControllerConfig, ControllerContext
+from wbcbench.controllers.hqp import Hqp
 from wbcbench.controllers.kin_hqp import KinHqp
 from wbcbench.controllers.lqp import Lqp
 from wbcbench.controllers.qp_wbc import QpWbc
@@ -15,6 +16,7 @@ from wbcbench.errors import UnknownNameError
 
 CONTROLLERS: dict[str, type[Controller]] = {
     QpWbc.name: QpWbc,
+    Hqp.name: Hqp,
     Lqp.name: Lqp,
     RcLqp.name: RcLqp,
     KinHqp.name: KinHqp,

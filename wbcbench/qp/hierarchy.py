@@ -46,6 +46,16 @@ Array = np.ndarray
 Strategy = Literal["cascade", "nullspace", "weighted", "rqr"]
 STRATEGIES: tuple[str, ...] = ("cascade", "nullspace", "weighted", "rqr")
 RANK_TOL = 1e-10
+#: Below the first level, inequality bounds are widened by FEAS_TOL (1 + |bound|): the previous
+#: optimum meets them only to the solver's tolerance, and with the held equalities leaving few
+#: directions free, a violation of 1e-10 would make the next QP infeasible.
+FEAS_TOL = 1e-8
+
+
+def _widen(lower: Array, upper: Array, relax: float) -> tuple[Array, Array]:
+    if not relax:
+        return lower, upper
+    return lower - relax * (1.0 + np.abs(lower)), upper + relax * (1.0 + np.abs(upper))
 
 
 def _rows(M: Array | None, n: int) -> Array:
@@ -237,17 +247,23 @@ def _with_hard(
     nx: int,
     name: str,
     eq_rows: list[tuple[Array, Array]] = (),  # type: ignore[assignment]
+    relax: float = 0.0,
 ) -> Problem:
-    """A QP over z = (x, extra) with the hard constraints on x plus extra rows over z."""
+    """A QP over z = (x, extra) with the hard constraints on x plus extra rows over z.
+
+    ``relax`` widens the hard inequalities and bounds (see FEAS_TOL).
+    """
     n = hard.n
     assert hard.A is not None and hard.C is not None and hard.b is not None
+    assert hard.l is not None and hard.u is not None
     pad = np.zeros((hard.A.shape[0], nx - n))
     A_blocks = [np.hstack([hard.A, pad])] + [rows for rows, _ in eq_rows]
     b_blocks = [hard.b] + [rhs for _, rhs in eq_rows]
     if hard.C.shape[0]:
         C_rows = [np.hstack([hard.C, np.zeros((hard.C.shape[0], nx - n))]), *C_rows]
-        lo = [hard.l, *lo]  # type: ignore[list-item]
-        hi = [hard.u, *hi]  # type: ignore[list-item]
+        hard_l, hard_u = _widen(hard.l, hard.u, relax)
+        lo = [hard_l, *lo]
+        hi = [hard_u, *hi]
     lb = ub = None
     if hard.lb is not None or hard.ub is not None:
         lb = np.full(nx, -np.inf)
@@ -256,6 +272,7 @@ def _with_hard(
             lb[:n] = hard.lb
         if hard.ub is not None:
             ub[:n] = hard.ub
+        lb[:n], ub[:n] = _widen(lb[:n], ub[:n], relax)
     return Problem(
         H,
         g,
@@ -293,20 +310,28 @@ def _solve_sequential(
     prev_hi: list[Array] = []
     results: list[LevelResult] = []
     x: Array | None = None
-    _, Z = row_space_and_null_space(hard.A)
+    R_hard, Z = row_space_and_null_space(hard.A)
     # the hard equalities' minimum-norm solution, for the null-space strategy's x_p
     assert hard.b is not None
     x_p = np.linalg.lstsq(hard.A, hard.b, rcond=None)[0] if hard.A.shape[0] else np.zeros(n)
     for i, lv in enumerate(soft):
         assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
+        relax = FEAS_TOL if i else 0.0
         t0 = time.perf_counter()
         if nullspace:
-            sol, x_new = _nullspace_level(hard, lv, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i])
+            sol, x_new = _nullspace_level(
+                hard, lv, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i], relax
+            )
         else:
             E = np.vstack(held_rows[1:]) if len(held_rows) > 1 else np.zeros((0, n))
-            Eb, _ = row_space_and_null_space(E)
+            # only the part of the held rows not already fixed by the hard equalities, so that
+            # [hard A; E] keeps full row rank (dependent rows that are only consistent to the
+            # solver's tolerance make active-set solvers declare the system inconsistent)
+            Eb, _ = row_space_and_null_space(E - (E @ R_hard.T) @ R_hard)
             e = Eb @ x if x is not None else np.zeros(0)
-            sol, x_new = _cascade_level(hard, lv, Eb, e, prev_C, prev_lo, prev_hi, solvers[i])
+            sol, x_new = _cascade_level(
+                hard, lv, Eb, e, prev_C, prev_lo, prev_hi, solvers[i], relax
+            )
         elapsed = time.perf_counter() - t0
         if sol is not None:
             _record(timer, sol, lv.name)
@@ -343,6 +368,7 @@ def _cascade_level(
     prev_lo: list[Array],
     prev_hi: list[Array],
     solver: QPSolver,
+    relax: float,
 ) -> tuple[Solution, Array | None]:
     """QP over z = (x, w, v): min ½‖w‖² + ½‖v‖², A x − w = b, l ≤ C x − v ≤ u, E x = e."""
     n = hard.n
@@ -362,8 +388,9 @@ def _cascade_level(
         rows[:, n : n + m] = -np.eye(m)
         eq_rows.append((rows, lv.b))
     C_rows: list[Array] = [np.hstack([Cp, np.zeros((Cp.shape[0], m + r))]) for Cp in prev_C]
-    lo = list(prev_lo)
-    hi = list(prev_hi)
+    widened = [_widen(lp, hp, relax) for lp, hp in zip(prev_lo, prev_hi, strict=True)]
+    lo = [w[0] for w in widened]
+    hi = [w[1] for w in widened]
     if r:
         block = np.zeros((r, nx))
         block[:, :n] = lv.C
@@ -371,7 +398,7 @@ def _cascade_level(
         C_rows.append(block)
         lo.append(lv.l)
         hi.append(lv.u)
-    problem = _with_hard(hard, H, g, C_rows, lo, hi, nx, lv.name, eq_rows)
+    problem = _with_hard(hard, H, g, C_rows, lo, hi, nx, lv.name, eq_rows, relax)
     sol = solver.solve(problem)
     return sol, (sol.x[:n] if sol.success and sol.x is not None else None)
 
@@ -385,6 +412,7 @@ def _nullspace_level(
     prev_lo: list[Array],
     prev_hi: list[Array],
     solver: QPSolver,
+    relax: float,
 ) -> tuple[Solution | None, Array | None]:
     """QP over (y, v) with x = x_p + Z y: min ½‖A Z y − (b − A x_p)‖² + ½‖v‖²."""
     assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
@@ -407,6 +435,8 @@ def _nullspace_level(
     def add(C: Array, lower: Array, upper: Array, slack: bool = False) -> None:
         if not C.shape[0]:
             return
+        if not slack:
+            lower, upper = _widen(lower, upper, relax)
         block = np.zeros((C.shape[0], nx))
         block[:, :d] = C @ Z
         if slack:

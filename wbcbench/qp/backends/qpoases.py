@@ -32,7 +32,13 @@ from wbcbench.qp.solution import Solution, SolutionStatus
 
 LIBRARY = "casadi"
 
-_DEFAULT_OPTIONS: dict[str, Any] = {"printLevel": "none", "error_on_fail": False}
+# enableEqualities: rows with equal bounds are handled as equalities; without it qpOASES fails
+# to initialise on the equality-constrained levels of hierarchical controllers.
+_DEFAULT_OPTIONS: dict[str, Any] = {
+    "printLevel": "none",
+    "error_on_fail": False,
+    "enableEqualities": True,
+}
 
 
 @contextlib.contextmanager
