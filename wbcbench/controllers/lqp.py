@@ -21,7 +21,6 @@ f is the reaction on the robot (see :mod:`wbcbench.dynamics.state`): the paper's
 
 from __future__ import annotations
 
-import time
 from typing import Literal
 
 import numpy as np
@@ -119,9 +118,34 @@ def slack_diagnostics(result: HierarchyResult, prefix: str = "") -> dict[str, fl
     return out
 
 
+def accept_final_failure(result: HierarchyResult, n_levels: int) -> bool:
+    """Keep the last priority level's optimum when only the final objective's QP failed.
+
+    The final level only picks one point in the set every priority already fixed; a backend
+    that fails on that (degenerate) QP leaves a valid, merely non-minimal-energy, solution.
+    Marks the result ok and returns True when it did so.
+    """
+    if result.ok or len(result.levels) != n_levels:
+        return False
+    result.ok = True
+    return True
+
+
 def failed_output(
-    n: int, k: int, nc: int, terms: list[TaskTerm], timings: dict[str, float], message: str
+    n: int,
+    k: int,
+    nc: int,
+    terms: list[TaskTerm],
+    timings: dict[str, float],
+    message: str,
+    last: ControlOutput | None = None,
 ) -> ControlOutput:
+    """A failed tick; timing and diagnostic keys of the last good tick are kept (as NaN where
+    this tick has none) so per-tick logs stay rectangular."""
+    diagnostics: dict[str, float] = {}
+    if last is not None:
+        timings = {**dict.fromkeys(last.timings, float("nan")), **timings}
+        diagnostics = dict.fromkeys(last.diagnostics, float("nan"))
     return ControlOutput(
         tau=np.zeros(k),
         qdd=np.zeros(n),
@@ -130,6 +154,7 @@ def failed_output(
         timings=timings,
         ok=False,
         message=message,
+        diagnostics=diagnostics,
     )
 
 
@@ -154,6 +179,7 @@ class Lqp(Controller):
         self.nc = 6 * len(self.frames)
         self.pool = SolverPool(ctx)
         self.last: HierarchyResult | None = None
+        self.last_output: ControlOutput | None = None
 
     def hierarchy(
         self, state: RobotState, terms: list[TaskTerm]
@@ -206,7 +232,6 @@ class Lqp(Controller):
         n, k, nc = state.n, state.k, self.nc
         terms = self.evaluate_tasks(state, t)
         levels, final, G, gamma = self.hierarchy(state, terms)
-        t0 = time.perf_counter()
         result = solve_hierarchy(
             Constraints(n + nc),
             levels,
@@ -215,20 +240,20 @@ class Lqp(Controller):
             self.pool.get(len(levels) + 1),
             timer,
         )
-        t_solve = time.perf_counter() - t0
         self.last = result
+        fallback = accept_final_failure(result, len(levels))
         if not result.ok:
-            return failed_output(n, k, nc, terms, timer.finish(), result.message)
+            msg = result.message
+            return failed_output(n, k, nc, terms, timer.finish(), msg, self.last_output)
         x = result.x
         tau = G @ x + gamma
-        timings = timer.finish()
-        timings["hierarchy"] = t_solve
-        return ControlOutput(
+        self.last_output = ControlOutput(
             tau=tau,
             qdd=x[:n].copy(),
             wrench=x[n:].copy(),
             terms=terms,
-            timings=timings,
+            timings=timer.finish(),
             iterations=timer.iterations,
-            diagnostics=slack_diagnostics(result),
+            diagnostics={**slack_diagnostics(result), "final_fallback": float(fallback)},
         )
+        return self.last_output

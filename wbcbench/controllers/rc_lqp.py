@@ -60,6 +60,7 @@ from wbcbench.controllers.base import (
 )
 from wbcbench.controllers.lqp import (
     SolverPool,
+    accept_final_failure,
     energy_objective,
     failed_output,
     level_weight,
@@ -138,6 +139,8 @@ class RcLqp(Controller):
         self._rows: _RowSplit | None = None
         self.last: tuple[HierarchyResult, HierarchyResult | None] | None = None
         self.last_reduced: ReducedModel | None = None
+        self.last_output: ControlOutput | None = None
+        self.fallbacks = 0  # final-objective QPs of this tick that failed (see lqp)
         # actuated indices (into Γ) of the plain coordinates and of the chains
         self._act_plain = self.split.plain[6:] - 6
         self._act_uc = self.split.unconstrained - 6
@@ -223,7 +226,9 @@ class RcLqp(Controller):
         final = energy_objective("lqp1.energy", red.M_r, self.nc, cfg.wrench_regularization)
         final.weight = cfg.final_weight
         handles = pool.get(len(levels) + 1)
-        return solve_hierarchy(Constraints(nx), levels, [final], cfg.strategy, handles, timer)
+        res = solve_hierarchy(Constraints(nx), levels, [final], cfg.strategy, handles, timer)
+        self.fallbacks += accept_final_failure(res, len(levels))
+        return res
 
     # -- LQP 2 ----------------------------------------------------------------------------------
 
@@ -291,7 +296,9 @@ class RcLqp(Controller):
         final.weight = cfg.final_weight
         handles = pool.get(len(levels) + 1)
         n_uc = red.M_uc.shape[0]
-        return solve_hierarchy(Constraints(n_uc), levels, [final], cfg.strategy, handles, timer)
+        res = solve_hierarchy(Constraints(n_uc), levels, [final], cfg.strategy, handles, timer)
+        self.fallbacks += accept_final_failure(res, len(levels))
+        return res
 
     # -- the step -------------------------------------------------------------------------------
 
@@ -303,6 +310,7 @@ class RcLqp(Controller):
         n_r, plain, uc = split.n_reduced, split.plain, split.unconstrained
         n_p = plain.size
         terms = self.evaluate_tasks(state, t)
+        self.fallbacks = 0
         red = self.reduced.compute(state, fixed_base=cfg.assembly == "paper" or cfg.diagnostics)
         self.last_reduced = red
         if self._rows is None:
@@ -313,7 +321,9 @@ class RcLqp(Controller):
         res1 = self.solve_lqp1(state, red, levels1, self.pool1, timer)
         t_lqp1 = time.perf_counter() - t1
         if not res1.ok:
-            return failed_output(n, k, nc, terms, timer.finish(), "LQP 1: " + res1.message)
+            return failed_output(
+                n, k, nc, terms, timer.finish(), "LQP 1: " + res1.message, self.last_output
+            )
         x1 = res1.x
 
         res2: HierarchyResult | None = None
@@ -325,7 +335,7 @@ class RcLqp(Controller):
             res2 = self.solve_lqp2(red, levels2, self.pool2, timer)
             t_lqp2 += time.perf_counter() - t2
             if res2.ok and cfg.coupling_priority:
-                w = res2.levels[-1].w  # eq. (30)'s violation
+                w = res2.levels[-2].w  # eq. (30)'s violation (the last level before the final)
                 extra["coupling_violation"] = float(np.linalg.norm(w))
                 if np.linalg.norm(w) > cfg.coupling_tol:
                     # LQP 1 again, the centroidal acceleration LQP 2 reached as an extra priority
@@ -339,14 +349,16 @@ class RcLqp(Controller):
                     t_lqp1 += time.perf_counter() - t1
                     if not res1.ok:
                         msg = "LQP 1 (coupling): " + res1.message
-                        return failed_output(n, k, nc, terms, timer.finish(), msg)
+                        return failed_output(n, k, nc, terms, timer.finish(), msg, self.last_output)
                     x1 = res1.x
                     t2 = time.perf_counter()
                     levels2, _, _ = self.lqp2_levels(state, red, terms, x1, False)
                     res2 = self.solve_lqp2(red, levels2, self.pool2b, timer)
                     t_lqp2 += time.perf_counter() - t2
             if not res2.ok:
-                return failed_output(n, k, nc, terms, timer.finish(), "LQP 2: " + res2.message)
+                return failed_output(
+                    n, k, nc, terms, timer.finish(), "LQP 2: " + res2.message, self.last_output
+                )
 
         # combined solution
         qdd = np.zeros(n)
@@ -376,16 +388,24 @@ class RcLqp(Controller):
             if res2 is not None:
                 diag.update(slack_diagnostics(res2))
         diag.update(extra)
+        diag["final_fallback"] = float(self.fallbacks)
+        if cfg.coupling_priority:
+            # keys of the re-solve exist on every tick, so per-tick logs stay rectangular
+            for key in ("w.lqp1.coupling", "v.lqp1.coupling", "w.lqp2.limits", "v.lqp2.limits"):
+                diag.setdefault(key, float("nan"))
+            diag.setdefault("coupling_violation", float("nan"))
         self.last = (res1, res2)
 
         timings = timer.finish()
         timings["reduced"] = red.time
         timings["lqp1"] = t_lqp1
         timings["lqp2"] = t_lqp2
+        if cfg.coupling_priority:
+            timings.setdefault("solve.lqp1.coupling", 0.0)
         for part in ("lqp1", "lqp2"):
             keys = [key for key in timings if key.startswith(f"solve.{part}.")]
             timings[f"solve.{part}"] = sum(timings[key] for key in keys)
-        return ControlOutput(
+        self.last_output = ControlOutput(
             tau=tau,
             qdd=qdd,
             wrench=f.copy(),
@@ -394,6 +414,7 @@ class RcLqp(Controller):
             iterations=timer.iterations,
             diagnostics=diag,
         )
+        return self.last_output
 
     @property
     def centroid_rows(self) -> slice:
