@@ -118,6 +118,7 @@ class TimingSpec(MatrixSpec):
         50.0, gt=0, description="abandon (skip) a combination slower than this per tick"
     )
     probe_ticks: int = Field(20, ge=1, description="ticks after which max_step_ms is checked")
+    keep_log: bool = Field(True, description="save the per-tick stage times of each run")
     check_tol: float | None = Field(
         1e-2,
         gt=0,
@@ -420,6 +421,7 @@ def _timing_options(matrix: TimingSpec, loaded: Any, file: str, key: str) -> dic
         max_step_ms=matrix.max_step_ms,
         probe_ticks=matrix.probe_ticks,
         check_tol=matrix.check_tol,
+        **({} if matrix.keep_log else {"keep_log": False}),
     )
 
 
@@ -586,11 +588,13 @@ def run_sweep(
     done = store.done_run_ids()
     report = SweepReport()
     pending: list[tuple[Job, str]] = []
+    planned: set[str] = set()
     for job in plan.jobs:
         rid = run_id(job.loaded, job.settings, version, extra=job.extra)
         if rid in done:
             report.resumed += 1
-        else:
+        elif rid not in planned:  # two matrices may name the same combination: run it once
+            planned.add(rid)
             pending.append((job, rid))
     budget = [max_jobs if max_jobs is not None else len(pending) + 1]
 

@@ -187,8 +187,9 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
             sim_duration_s=ticks * loaded.spec.dt,
             failures=timings.failures,
         )
-        log = {f"time.{k}": v for k, v in timings.stages.items()}
-        log["t"] = rec.t[: len(next(iter(timings.stages.values()), []))]
+        if opts.get("keep_log", True):
+            log = {f"time.{k}": v for k, v in timings.stages.items()}
+            log["t"] = rec.t[: len(next(iter(timings.stages.values()), []))]
     except TooSlow as exc:
         row.update(status="skipped", fell=False, message=str(exc), ticks=0, failures=0)
     except WbcBenchError as exc:

@@ -77,7 +77,11 @@ def load_results(path: str | Path) -> Results:
         # folders written before timing runs existed hold tracking runs only
         kind = runs["kind"] if "kind" in runs.columns else pd.Series(index=runs.index, dtype=object)
         runs["kind"] = kind.fillna("tracking")
+        # a folder written before duplicates were merged may repeat a run: keep the first
+        runs = runs.drop_duplicates("run_id")
     metrics = pd.read_csv(folder / "metrics.csv") if (folder / "metrics.csv").exists() else None
+    if metrics is not None:
+        metrics = metrics.drop_duplicates(["run_id", "task", "metric"])
     prov_path = folder / "provenance.json"
     prov = json.loads(prov_path.read_text()) if prov_path.exists() else {}
     return Results(folder, runs, metrics if metrics is not None else pd.DataFrame(), prov)
