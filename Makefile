@@ -44,7 +44,8 @@ bench-micro: $(STAMP)
 reference: $(STAMP)
 	rm -rf results/reference
 	$(VENV)/bin/wbcbench bench --sweep sweeps/reference.yaml --out results/reference --executor serial --no-progress
-	rm -rf results/reference/recordings results/reference/problems results/reference/*.parquet
+	rm -rf results/reference/recordings results/reference/problems results/reference/*.parquet \
+		results/reference/figures/*.svg
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
