@@ -162,6 +162,12 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
     wall0 = time.perf_counter()
     try:
         rec = cached_recording(folder, loaded, opts["recorder"], opts["start"], opts["ticks"])
+        if len(rec) <= int(opts["warmup"]):
+            raise WbcBenchError(
+                f"the recording by {opts['recorder']} has {len(rec)} states from "
+                f"t = {opts['start']:g} s (it ended early: the recorder fell or failed); "
+                "set `record_with` or `start` in the timing matrix"
+            )
         timings = replay(
             loaded,
             rec,

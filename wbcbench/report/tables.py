@@ -226,8 +226,9 @@ def to_osf_s1(res: Results) -> PaperTable:
             {
                 "task": f"{paper.row} {paper.column}",
                 "our task": f"{task} ({metric})" if metric else "not found",
-                f"paper [{paper.unit}]": paper.value,
-                f"ours [{paper.unit}]": ours,
+                "unit": paper.unit,
+                "paper": paper.value,
+                "ours": ours,
                 "ours / paper": _ratio(ours, paper.value or float("nan")),
             }
         )
