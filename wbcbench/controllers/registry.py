@@ -10,12 +10,16 @@ from wbcbench.controllers.base import Controller, ControllerConfig, ControllerCo
 from wbcbench.controllers.hqp import Hqp
 from wbcbench.controllers.kin_hqp import KinHqp
 from wbcbench.controllers.lqp import Lqp
+from wbcbench.controllers.osf_hqp import OsfHqp
 from wbcbench.controllers.qp_wbc import QpWbc
+from wbcbench.controllers.to_osf import ToOsf
 from wbcbench.controllers.rc_lqp import RcLqp
 from wbcbench.errors import UnknownNameError
 
 CONTROLLERS: dict[str, type[Controller]] = {
     QpWbc.name: QpWbc,
+    ToOsf.name: ToOsf,
+    OsfHqp.name: OsfHqp,
     Hqp.name: Hqp,
     Lqp.name: Lqp,
     RcLqp.name: RcLqp,

@@ -1,0 +1,164 @@
+"""HQP on the contact-consistent OSF (OSF-HQP, Lee, Ahn, Lee, Park, IROS 2021, §III eq. 16–31).
+
+One small QP per priority level over the level's task-space slack and the contact-wrench
+distribution, x_l = (w_l, F_r):
+
+    minimise   ½ ‖w_l‖² (+ ½ ε ‖F_r‖²)                                          (26)
+    subject to Γ = Γ_{<l}* + E_l (ẍ*_l + w_l) − B_l (Ĵ_l Γ_{<l}* + b_l) + Y_c F_r     (25)
+               −Γ_max ≤ Γ ≤ Γ_max                                                (27)
+               |ẍ*_l + w_l| ≤ ẍ_max                                              (28)
+               l_w ≤ C_w (F Γ + f₀) ≤ u_w                                        (29)
+
+with the slacks of the levels above fixed (Γ_{<l}* is their torque), E_l = J*_{l|<l}ᵀ Λ_{l|<l} for
+an acceleration-level task and J*_{l|<l}ᵀ for a force-level one (eq. 30–31; the reference is then
+an operational force, see :mod:`wbcbench.dynamics.osf`). The exact level coupling B_l Ĵ_l Γ_{<l}
+(``coupling: exact``) makes every level realise its reference when feasible; ``literal`` drops it
+as the paper's eq. (25) does. A final QP optimises the contact wrench over F_r only,
+min ½ ‖W_c f‖² subject to (27)–(29) (§III-B1, W_c zero on the normal forces by default, as in the
+paper's experiment); with a single plane contact there is no F_r and no final QP.
+
+Timings: ``solve.T<i>`` per task level, ``solve.wrench`` for the final QP, ``params`` for the
+operational-space parameters (see :mod:`wbcbench.sim.params`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field, field_validator
+
+from wbcbench.controllers.base import ControllerConfig, ControllerContext, ControlOutput, StageTimer
+from wbcbench.controllers.to_osf import OsfBaseConfig, OsfControllerBase, wrench_selection
+from wbcbench.dynamics.state import RobotState
+from wbcbench.qp import Problem
+
+
+class OsfHqpConfig(OsfBaseConfig):
+    """Settings of the OSF-based HQP."""
+
+    wrench_weights: list[float] = Field(
+        [1.0, 1.0, 0.0, 1.0, 1.0, 1.0],
+        description="diagonal of W_c per contact (fx fy fz mx my mz), or one value per wrench row",
+    )
+    regularization: float = Field(
+        1e-9, ge=0, description="weight of ‖F_r‖² in the task levels (keeps their Hessian > 0)"
+    )
+    carry_tolerance: float = Field(
+        1e-6,
+        ge=0,
+        description="inequality bounds of the i-th QP (0 first) widened by i times this much "
+        "[N·m, N]: a level inherits the solution above only to the solver's accuracy, and a "
+        "bound active there would otherwise make the next level infeasible",
+    )
+
+    @field_validator("wrench_weights")
+    @classmethod
+    def _nonnegative(cls, v: list[float]) -> list[float]:
+        if not v or min(v) < 0:
+            raise ValueError(f"wrench_weights must be non-negative numbers, got {v}")
+        return v
+
+
+class OsfHqp(OsfControllerBase):
+    """Cascade of small task-space QPs on the contact-consistent OSF, then a wrench QP."""
+
+    name = "osf_hqp"
+    summary = "HQP on the contact-consistent OSF (OSF-HQP): one small QP per level over (w, F_r)"
+    Config = OsfHqpConfig
+    config: OsfHqpConfig
+
+    def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
+        super().__init__(ctx, config)
+        self.solvers = [ctx.new_solver() for _ in self.levels]
+        self.final_solver = ctx.new_solver()
+        Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
+        self.WtW = Wc.T @ Wc
+
+    def step(self, state: RobotState, t: float) -> ControlOutput:
+        timer = StageTimer(state)
+        cfg = self.config
+        terms, per_level, refs, read = self.prepare(state, t)
+        p = read.params
+        k = state.k
+        np_ = p.Yc.shape[1]
+        tau_max = self.ctx.tau_max
+        cw_f0 = self.Cw @ p.f0 if self.nc else np.zeros(0)
+        CwF = self.Cw @ p.F if self.nc else np.zeros((0, k))
+        CwQ = self.Cw @ p.Qf if self.nc else np.zeros((0, np_))
+        tau = np.zeros(k)
+        partial: list[np.ndarray] = []
+        problems: list[Problem] = []
+        diagnostics = self.base_diagnostics(read)
+        for i, lv in enumerate(p.levels):
+            m = lv.dim
+            base = p.level_step(i, tau, refs[i])  # Γ_{≤l} with w_l = 0
+            E = lv.E
+            nx = m + np_
+            H = np.zeros((nx, nx))
+            H[np.arange(m), np.arange(m)] = 1.0
+            H[np.arange(m, nx), np.arange(m, nx)] = cfg.regularization
+            C = np.vstack([np.hstack([E, p.Yc]), np.hstack([CwF @ E, CwQ])])
+            cwb = cw_f0 + CwF @ base
+            tol = cfg.carry_tolerance * i
+            lower = np.concatenate([-tau_max - base, self.lw - cwb]) - tol
+            upper = np.concatenate([tau_max - base, self.uw - cwb]) + tol
+            bound = self.acc_bound[i]
+            lb = ub = None
+            if np.isfinite(bound).any():
+                lb = np.concatenate([-bound - refs[i], np.full(np_, -np.inf)])
+                ub = np.concatenate([bound - refs[i], np.full(np_, np.inf)])
+            name = f"T{i + 1}"
+            problem = Problem(H, np.zeros(nx), C=C, l=lower, u=upper, lb=lb, ub=ub, name=name)
+            problems.append(problem)
+            sol = self.solvers[i].solve(problem)
+            timer.add_solution(sol, f"T{i + 1}")
+            if not sol.success or sol.x is None:
+                return self.failed(
+                    timer,
+                    read,
+                    terms,
+                    f"level T{i + 1}: {sol.solver}: {sol.status.value}: {sol.message}",
+                    problems,
+                )
+            w = sol.x[:m]
+            tau = base + E @ w
+            partial.append(tau)
+            diagnostics[f"slack.T{i + 1}"] = float(np.linalg.norm(w))
+        f_r = np.zeros(np_)
+        if np_:
+            f_tasks = p.f0 + p.F @ tau
+            QW = p.Qf.T @ self.WtW  # Q_fᵀ W_cᵀ W_c
+            H = QW @ p.Qf
+            H[np.diag_indices(np_)] += cfg.regularization
+            g = QW @ f_tasks
+            C = np.vstack([p.Yc, CwQ])
+            cwt = self.Cw @ f_tasks
+            tol = cfg.carry_tolerance * len(p.levels)
+            lower = np.concatenate([-tau_max - tau, self.lw - cwt]) - tol
+            upper = np.concatenate([tau_max - tau, self.uw - cwt]) + tol
+            problem = Problem(H, g, C=C, l=lower, u=upper, name="wrench")
+            problems.append(problem)
+            sol = self.final_solver.solve(problem)
+            timer.add_solution(sol, "wrench")
+            if not sol.success or sol.x is None:
+                return self.failed(
+                    timer,
+                    read,
+                    terms,
+                    f"wrench level: {sol.solver}: {sol.status.value}: {sol.message}",
+                    problems,
+                )
+            f_r = sol.x
+        dist = p.Yc @ f_r
+        tau = tau + dist
+        wrench = p.wrench(tau)
+        diagnostics.update(self.consistency_diagnostics(state, p, per_level, partial, dist, wrench))
+        return ControlOutput(
+            tau=tau,
+            qdd=p.qdd(tau),
+            wrench=wrench,
+            terms=terms,
+            timings=self.finish_timings(timer, read),
+            iterations=timer.iterations,
+            diagnostics=diagnostics,
+            problems=problems if self.ctx.keep_problems else [],
+        )

@@ -1,0 +1,340 @@
+"""Task-oriented OSF whole-body control (TO-OSF, Lee et al. 2021, §III-A eq. 9–15).
+
+One QP per tick over the optimised task references of every level and an internal contact wrench,
+ρ = (ẍ_opt,1 … ẍ_opt,m, F_opt):
+
+    minimise   ½ Σ_i H_i ‖ẍ_opt,i − ẍ*_i‖² + ½ H_w ‖S_f f‖²                 (9)–(11)
+    subject to Γ = K ẍ_opt + γ₀ + Y_w F_opt          (12, the OS-WBC torque of eq. 7 as one
+                                                       affine map; γ₀ is Γ_gc)
+               f = F (K ẍ_opt + γ₀) + f₀ + F_opt      (13, the contact wrench)
+               G F_opt = 0                            (14, F_opt is internal: G is the grasp map)
+               l_w ≤ C_w f ≤ u_w                      (15, normal force, friction, CoP, yaw)
+               −Γ_max ≤ Γ ≤ Γ_max,  |ẍ_opt,i| ≤ ẍ_max,i
+    then Γ from eq. (7) with the optimised references.
+
+Γ and f are substituted rather than kept as variables, so the QP has Σ m_i + c variables. The
+wrench term penalises the tangential forces and the moments of the *total* wrench (S_f drops the
+normal forces), which is what the paper says it is for ("the most stable CoP position and the
+least slipping"); ``wrench_cost: internal`` penalises only F_opt, the literal eq. (11). The task
+weights default to H = 1e7 for every task and H_w = 1 (TO-OSF §IV, "H_{m+1} = I").
+
+f is the reaction on the robot (the papers' F_c = −f). The operational-space parameters come from
+:mod:`wbcbench.dynamics.osf` through the parameter server (``params: inline | periodic:N |
+async``). This module also holds what both OSF controllers share (:class:`OsfControllerBase`).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field, field_validator
+
+from wbcbench.controllers.base import (
+    Controller,
+    ControllerConfig,
+    ControllerContext,
+    ControlOutput,
+    StageTimer,
+)
+from wbcbench.controllers.qp_wbc import task_weight
+from wbcbench.dynamics.osf import OsfModel, OsfParams, group_levels, level_kinds
+from wbcbench.dynamics.state import RobotState
+from wbcbench.errors import ControllerError
+from wbcbench.metrics.consistency import dc_error, hierarchy_leak
+from wbcbench.qp import Problem
+from wbcbench.sim.params import ParameterServer, ParamsRead, parse_params_mode
+from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.tasks import TaskTerm
+
+
+class OsfBaseConfig(ControllerConfig):
+    """Settings both OSF controllers share."""
+
+    inverse: Literal["cod", "svd", "pinv"] = Field(
+        "cod", description="dynamically consistent inverse by COD or SVD; pinv = ablation"
+    )
+    params: str = Field(
+        "inline", description="operational-space parameters: inline | periodic:N | async"
+    )
+    coupling: Literal["exact", "literal"] = Field(
+        "exact", description="exact level coupling, or the papers' literal Λ ẍ* + Γ_gc form"
+    )
+    rcond: float = Field(1e-9, gt=0, lt=1, description="relative rank threshold of the inverses")
+    acc_limits: dict[str, float] = Field(
+        default_factory=dict,
+        description="task name → bound on |ẍ_opt| per axis [m/s², rad/s²; N, N·m for force tasks]",
+    )
+    consistency: bool = Field(
+        False, description="oracle hierarchy-leak metrics in the diagnostics (costs time)"
+    )
+
+    @field_validator("params")
+    @classmethod
+    def _mode(cls, v: str) -> str:
+        parse_params_mode(v)
+        return v
+
+
+class OsfControllerBase(Controller):
+    """Shared plumbing: levels, the parameter server, references, limits, diagnostics."""
+
+    config: OsfBaseConfig
+    affine: bool = False
+
+    def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
+        super().__init__(ctx, config)
+        cfg = self.config
+        self.frames = ctx.contact_frames
+        self.levels = group_levels(ctx.tasks)
+        self.kinds = level_kinds(self.levels)
+        self.model = OsfModel(
+            self.levels,
+            self.frames,
+            self.kinds,
+            inverse=cfg.inverse,
+            coupling=cfg.coupling,
+            rcond=cfg.rcond,
+            affine=self.affine,
+        )
+        self.server = ParameterServer(self.model, cfg.params, ctx.robot)
+        self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
+        self.nc = 6 * len(self.frames)
+        names = {t.name for t in ctx.tasks}
+        unknown = sorted(set(cfg.acc_limits) - names)
+        if unknown:
+            raise ControllerError(
+                f"{self.name}: acc_limits names unknown task(s) {', '.join(unknown)}; "
+                f"valid choices: {', '.join(sorted(names))}"
+            )
+        self.acc_bound = [
+            np.concatenate([np.full(t.dim, cfg.acc_limits.get(t.name, np.inf)) for t in tasks])
+            for tasks in self.levels
+        ]
+        self.tick = 0
+
+    def close(self) -> None:
+        """Stop the parameter worker (``params: async``)."""
+        self.server.close()
+
+    # -- per tick ---------------------------------------------------------------------------
+
+    def prepare(
+        self, state: RobotState, t: float
+    ) -> tuple[list[TaskTerm], list[list[TaskTerm]], list[np.ndarray], ParamsRead]:
+        """Task terms (flat and per level), stacked references per level and the parameters."""
+        terms = self.evaluate_tasks(state, t)
+        by_task = {id(term.task): term for term in terms}
+        per_level = [[by_task[id(task)] for task in tasks] for tasks in self.levels]
+        refs = [np.concatenate([term.acc_ref for term in lv]) for lv in per_level]
+        jac = [
+            (np.vstack([term.J for term in lv]), np.concatenate([term.drift for term in lv]))
+            for lv in per_level
+        ]
+        read = self.server.get(state, self.tick, jac)
+        self.tick += 1
+        return terms, per_level, refs, read
+
+    def finish_timings(self, timer: StageTimer, read: ParamsRead) -> dict[str, float]:
+        """Stage timings with the parameter time as its own stage (taken out of ``build``)."""
+        out = timer.finish()
+        out["params"] = read.loop_time
+        out["build"] = max(0.0, out["build"] - read.loop_time)
+        return out
+
+    def base_diagnostics(self, read: ParamsRead) -> dict[str, float]:
+        return {
+            "params_staleness": float(read.staleness),
+            "params_compute_time": read.compute_time,
+        }
+
+    def consistency_diagnostics(
+        self,
+        state: RobotState,
+        params: OsfParams,
+        per_level: list[list[TaskTerm]],
+        partial: list[np.ndarray],
+        extra: np.ndarray,
+        wrench: np.ndarray,
+    ) -> dict[str, float]:
+        if not self.config.consistency:
+            return {}
+        level_tasks = [[(term.task.name, term.J, term.drift) for term in lv] for lv in per_level]
+        out = hierarchy_leak(state, self.frames, partial, extra, level_tasks, wrench)
+        out["dc_error"] = dc_error(params)
+        return out
+
+    def failed(
+        self,
+        timer: StageTimer,
+        read: ParamsRead,
+        terms: list[TaskTerm],
+        message: str,
+        problems: list[Problem],
+    ) -> ControlOutput:
+        k, n = self.ctx.robot.k, self.ctx.robot.nv
+        return ControlOutput(
+            tau=np.zeros(k),
+            qdd=np.zeros(n),
+            wrench=np.zeros(self.nc),
+            terms=terms,
+            timings=self.finish_timings(timer, read),
+            ok=False,
+            message=message,
+            iterations=timer.iterations,
+            diagnostics=self.base_diagnostics(read),
+            problems=problems if self.ctx.keep_problems else [],
+        )
+
+
+def wrench_selection(weights: list[float], n_contacts: int, controller: str) -> np.ndarray:
+    """Diagonal wrench weighting (6 n_contacts, 6 n_contacts) from 6 values per contact (repeated)
+    or one per wrench row; rows weighted 0 are dropped."""
+    w = np.asarray(weights, dtype=float)
+    nc = 6 * n_contacts
+    if w.size == 6:
+        w = np.tile(w, n_contacts)
+    if w.size != nc:
+        raise ControllerError(
+            f"{controller}: wrench_weights has {w.size} values; give 6 (repeated per contact) "
+            f"or {nc} (one per wrench row)"
+        )
+    keep = np.flatnonzero(w > 0)
+    return np.eye(nc)[keep] * w[keep, None]
+
+
+class ToOsfConfig(OsfBaseConfig):
+    """Settings of the task-oriented OSF."""
+
+    weights: list[float] = Field(
+        [1e7],
+        description="H per task priority (1 first; the last repeats for lower priorities)",
+    )
+    wrench_weight: float = Field(1.0, ge=0, description="H_w of ‖S_f f‖² (tangential + moments)")
+    wrench_weights: list[float] = Field(
+        [1.0, 1.0, 0.0, 1.0, 1.0, 1.0],
+        description="diagonal of S_f (fx fy fz mx my mz) per contact, or one value per wrench row; "
+        "0 on the normal forces is the paper's S_f",
+    )
+    wrench_cost: Literal["total", "internal"] = Field(
+        "total", description="S_f applied to the total wrench, or to F_opt only (literal eq. 11)"
+    )
+    regularization: float = Field(
+        1e-3,
+        ge=0,
+        description="weight of ‖F_opt‖² relative to H_w (keeps the Hessian positive definite)",
+    )
+
+    @field_validator("weights")
+    @classmethod
+    def _positive(cls, v: list[float]) -> list[float]:
+        if not v or min(v) <= 0:
+            raise ValueError(f"weights must be a non-empty list of positive numbers, got {v}")
+        return v
+
+    @field_validator("wrench_weights")
+    @classmethod
+    def _nonnegative(cls, v: list[float]) -> list[float]:
+        if not v or min(v) < 0:
+            raise ValueError(f"wrench_weights must be non-negative numbers, got {v}")
+        return v
+
+
+class ToOsf(OsfControllerBase):
+    """Task-oriented OSF: one QP amends every task reference and the contact wrench."""
+
+    name = "to_osf"
+    summary = "task-oriented OSF (TO-OSF): one QP over task accelerations and contact wrench"
+    Config = ToOsfConfig
+    config: ToOsfConfig
+    affine = True
+
+    def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
+        super().__init__(ctx, config)
+        self.solver = ctx.new_solver()
+        self.Sf = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
+
+    def step(self, state: RobotState, t: float) -> ControlOutput:
+        timer = StageTimer(state)
+        cfg = self.config
+        terms, per_level, refs, read = self.prepare(state, t)
+        p = read.params
+        k, nc = state.k, self.nc
+        rho_ref = np.concatenate(refs)
+        nr = rho_ref.size
+        nx = nr + nc
+        h_task = np.concatenate(
+            [np.full(term.dim, task_weight(term, cfg.weights)) for lv in per_level for term in lv]
+        )
+        scale = 1.0 / float(h_task.max())  # the same minimiser, better-scaled numbers
+        # F_opt's block weighs ~H_w/H_task; it is solved for in units of σ [N] so that both
+        # blocks of the Hessian are O(1) (ill-conditioned otherwise: daqp cycles)
+        w_f = scale * cfg.wrench_weight if nc and cfg.wrench_weight > 0 else scale
+        sigma = 1.0 / np.sqrt(w_f)
+        D = np.concatenate([np.ones(nr), np.full(nc, sigma)])
+        # wrench f = A_f x + f_c  (eq. 13)
+        A_f = np.hstack([p.F @ p.K, np.eye(nc)])
+        f_c = p.F @ p.gamma0 + p.f0
+        H = np.zeros((nx, nx))
+        g = np.zeros(nx)
+        H[np.arange(nr), np.arange(nr)] = scale * h_task
+        g[:nr] = -scale * h_task * rho_ref
+        if nc and cfg.wrench_weight > 0:
+            hw = scale * cfg.wrench_weight
+            if cfg.wrench_cost == "total":
+                SA = self.Sf @ A_f
+                H += hw * (SA.T @ SA)
+                g += hw * (SA.T @ (self.Sf @ f_c))
+            else:
+                H[nr:, nr:] += hw * (self.Sf.T @ self.Sf)
+        H[np.arange(nr, nx), np.arange(nr, nx)] += cfg.regularization * w_f
+        A_eq = np.hstack([np.zeros((6, nr)), p.G]) if nc else np.zeros((0, nx))
+        b_eq = np.zeros(A_eq.shape[0])
+        A_tau = np.hstack([p.K, p.Yw])
+        tau_max = self.ctx.tau_max
+        C = np.vstack([A_tau, self.Cw @ A_f]) if nc else A_tau
+        lower = -tau_max - p.gamma0
+        upper = tau_max - p.gamma0
+        if nc:
+            cwf = self.Cw @ f_c
+            lower = np.concatenate([lower, self.lw - cwf])
+            upper = np.concatenate([upper, self.uw - cwf])
+        bound = np.concatenate(self.acc_bound)
+        lb = ub = None
+        if np.isfinite(bound).any():
+            lb = np.concatenate([-bound, np.full(nc, -np.inf)])
+            ub = np.concatenate([bound, np.full(nc, np.inf)])
+        # x = D x̃
+        H = H * D[:, None] * D[None, :]
+        problem = Problem(H, g * D, A_eq * D, b_eq, C * D, lower, upper, lb, ub, name="to_osf")
+        sol = self.solver.solve(problem)
+        timer.add_solution(sol)
+        if not sol.success or sol.x is None:
+            return self.failed(
+                timer, read, terms, f"{sol.solver}: {sol.status.value}: {sol.message}", [problem]
+            )
+        x = sol.x * D
+        rho, f_opt = x[:nr], x[nr:]
+        opt_refs = np.split(rho, np.cumsum([r.size for r in refs])[:-1])
+        partial = p.partial_torques(opt_refs)
+        dist = p.Yw @ f_opt if nc else np.zeros(k)
+        tau = partial[-1] + dist
+        wrench = p.wrench(tau)
+        diagnostics = self.base_diagnostics(read)
+        pos = 0
+        for lv in per_level:
+            for term in lv:
+                amend = rho[pos : pos + term.dim] - term.acc_ref
+                diagnostics[f"amend.{term.task.name}"] = float(np.linalg.norm(amend))
+                pos += term.dim
+        diagnostics.update(self.consistency_diagnostics(state, p, per_level, partial, dist, wrench))
+        return ControlOutput(
+            tau=tau,
+            qdd=p.qdd(tau),
+            wrench=wrench,
+            terms=terms,
+            timings=self.finish_timings(timer, read),
+            iterations=timer.iterations,
+            diagnostics=diagnostics,
+            problems=[problem] if self.ctx.keep_problems else [],
+        )
