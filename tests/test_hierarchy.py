@@ -46,7 +46,7 @@ def random_hierarchy(seed: int, n: int = 14, active: bool = True):
     return hard, levels, finals
 
 
-def solve(strategy: str, hard, levels, finals, solver: str = "clarabel"):
+def solve(strategy: str, hard, levels, finals, solver: str = "daqp"):
     handles = [make_solver(solver, tier="high") for _ in range(len(levels) + len(finals))]
     return solve_hierarchy(hard, levels, finals, strategy, handles)
 

@@ -161,6 +161,8 @@ class Controller(ABC):
     #: "torque" controllers drive the MuJoCo simulation; "velocity" controllers command q̇ and
     #: are integrated kinematically
     kind: ClassVar[str] = "torque"
+    #: backends the formulation is validated with (the registry sweep requires them to succeed)
+    reference_solvers: ClassVar[tuple[str, ...]] = ("proxqp", "daqp")
 
     @classmethod
     def applies_to(cls, scenario: Scenario) -> str:
@@ -190,7 +192,7 @@ class Controller(ABC):
     def evaluate_tasks(self, state: RobotState, t: float) -> list[TaskTerm]:
         return [task.evaluate(state, t) for task in self.ctx.tasks]
 
-    def close(self) -> None:
+    def close(self) -> None:  # noqa: B027 - an optional hook: most controllers hold nothing
         """Release what the controller holds beyond memory (worker processes, shared memory).
 
         The runners call it when a run ends, however it ends; the default holds nothing.

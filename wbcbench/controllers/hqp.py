@@ -61,6 +61,12 @@ class HqpConfig(ControllerConfig):
         max_length=6,
         description="W_c diagonal per contact for the 'wrench' final (fx fy fz mx my mz)",
     )
+    prox: float = Field(
+        1e-8,
+        ge=0,
+        description="proximal weight of the retry of a level the backend failed to solve (see "
+        "wbcbench.qp.hierarchy); 0 = no retry",
+    )
     level_weights: list[float] = Field(
         [1e6, 1e3, 1.0, 1e-3, 1e-6],
         description="weights per priority for the 'weighted' strategy (last one repeats)",
@@ -175,12 +181,19 @@ class Hqp(Controller):
         levels = self._levels(terms, state)
         finals = self._finals(state)
         result = solve_hierarchy(
-            hard, levels, finals, self.config.strategy, self.solvers, timer=timer
+            hard,
+            levels,
+            finals,
+            self.config.strategy,
+            self.solvers,
+            timer=timer,
+            prox=self.config.prox,
         )
         diagnostics = {
             f"slack.{lv.name}": float(np.linalg.norm(np.concatenate([lv.w, lv.v])))
             for lv in result.levels[: len(levels)]
         }
+        diagnostics["prox_retries"] = float(result.retries)
         if not result.ok:
             return ControlOutput(
                 tau=np.zeros(k),

@@ -170,6 +170,7 @@ class Lqp(Controller):
         "eliminated; sequential null-space, cascade or weighted"
     )
     Config = LqpConfig
+    reference_solvers = ("quadprog",)
     config: LqpConfig
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:

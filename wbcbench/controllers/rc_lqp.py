@@ -123,6 +123,7 @@ class RcLqp(Controller):
         "dynamics, two sequential lexicographic QPs, exact or paper torque assembly"
     )
     Config = RcLqpConfig
+    reference_solvers = ("quadprog",)
     config: RcLqpConfig
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:

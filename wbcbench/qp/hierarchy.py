@@ -46,10 +46,10 @@ Array = np.ndarray
 Strategy = Literal["cascade", "nullspace", "weighted", "rqr"]
 STRATEGIES: tuple[str, ...] = ("cascade", "nullspace", "weighted", "rqr")
 RANK_TOL = 1e-10
-#: Below the first level, inequality bounds are widened by FEAS_TOL (1 + |bound|): the previous
+#: At level i (0-based) inequality bounds are widened by i FEAS_TOL (1 + |bound|): the previous
 #: optimum meets them only to the solver's tolerance, and with the held equalities leaving few
 #: directions free, a violation of 1e-10 would make the next QP infeasible.
-FEAS_TOL = 1e-8
+FEAS_TOL = 1e-9
 
 
 def _widen(lower: Array, upper: Array, relax: float) -> tuple[Array, Array]:
@@ -139,10 +139,13 @@ class LevelResult:
 
 @dataclass
 class HierarchyResult:
+    """The solution; ``retries`` counts levels re-solved with the proximal term."""
+
     x: Array
     ok: bool
     message: str = ""
     levels: list[LevelResult] = field(default_factory=list)
+    retries: int = 0
 
 
 # -- linear algebra --------------------------------------------------------------------------
@@ -163,6 +166,12 @@ def row_space_and_null_space(E: Array, tol: float = RANK_TOL) -> tuple[Array, Ar
     return Q[:, :rank].T, Q[:, rank:]
 
 
+def _null_projector(A: Array) -> Array:
+    """Orthogonal projector onto null(A), (n, n)."""
+    R, _ = row_space_and_null_space(A)
+    return np.eye(A.shape[1]) - R.T @ R
+
+
 def _violation(Cx: Array, lower: Array, upper: Array) -> Array:
     """Signed slack v that puts C x − v inside [l, u] with the smallest |v|."""
     return np.where(Cx > upper, Cx - upper, np.where(Cx < lower, Cx - lower, 0.0))
@@ -178,8 +187,20 @@ def solve_hierarchy(
     strategy: str,
     solvers: list[QPSolver] | None = None,
     timer: StageTimer | None = None,
+    prox: float = 0.0,
 ) -> HierarchyResult:
-    """Solve the hierarchy; ``solvers`` holds one QP handle per level then per final."""
+    """Solve the hierarchy; ``solvers`` holds one QP handle per level then per final.
+
+    ``prox`` > 0: a level whose QP the backend fails to solve is solved again with
+    ``prox ‖P_l (x − x_c)‖²`` added (cascade and null-space strategies), P_l the projector onto
+    the null space of the level's rows and x_c the previous
+    level's solution (the hard equalities' minimum-norm solution at the first level). Without it
+    a level's QP has a semidefinite Hessian and often an unbounded set of optima (internal
+    contact forces, say), on which several backends fail; with it each level has one optimum,
+    the same for both strategies. It leaves the level's objective untouched, so the level's
+    optimum moves only through the inequalities (by about ``prox ‖x − x_c‖`` when x_c is
+    infeasible); higher levels stay exact (they are held).
+    """
     if strategy not in STRATEGIES:
         raise UnknownNameError("hierarchy strategy", strategy, STRATEGIES)
     n = hard.n
@@ -191,7 +212,7 @@ def solve_hierarchy(
         raise ValueError("one solver handle per level (and per final) is needed")
     if strategy == "weighted":
         return _solve_weighted(hard, soft, solvers[0], timer)
-    return _solve_sequential(hard, soft, n_finals, solvers, timer, strategy == "nullspace")
+    return _solve_sequential(hard, soft, n_finals, solvers, timer, strategy == "nullspace", prox)
 
 
 def _record(timer: StageTimer | None, sol: Solution, name: str) -> None:
@@ -301,6 +322,7 @@ def _solve_sequential(
     solvers: list[QPSolver],
     timer: StageTimer | None,
     nullspace: bool,
+    prox: float,
 ) -> HierarchyResult:
     n = hard.n
     assert hard.A is not None
@@ -310,34 +332,45 @@ def _solve_sequential(
     prev_hi: list[Array] = []
     results: list[LevelResult] = []
     x: Array | None = None
+    retries = 0
+    Eb = np.zeros((0, n))
+    e = np.zeros(0)
     R_hard, Z = row_space_and_null_space(hard.A)
     # the hard equalities' minimum-norm solution, for the null-space strategy's x_p
     assert hard.b is not None
     x_p = np.linalg.lstsq(hard.A, hard.b, rcond=None)[0] if hard.A.shape[0] else np.zeros(n)
     for i, lv in enumerate(soft):
         assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
-        relax = FEAS_TOL if i else 0.0
+        # growing with the level, so the previous optimum is strictly inside the widened set
+        relax = FEAS_TOL * i
         t0 = time.perf_counter()
-        if nullspace:
-            sol, x_new = _nullspace_level(
-                hard, lv, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i], relax
-            )
-        else:
+        if not nullspace:
             E = np.vstack(held_rows[1:]) if len(held_rows) > 1 else np.zeros((0, n))
             # only the part of the held rows not already fixed by the hard equalities, so that
             # [hard A; E] keeps full row rank (dependent rows that are only consistent to the
             # solver's tolerance make active-set solvers declare the system inconsistent)
             Eb, _ = row_space_and_null_space(E - (E @ R_hard.T) @ R_hard)
             e = Eb @ x if x is not None else np.zeros(0)
-            sol, x_new = _cascade_level(
-                hard, lv, Eb, e, prev_C, prev_lo, prev_hi, solvers[i], relax
-            )
+        center = x if x is not None else x_p
+        # the bare level first; the proximal term only when the backend fails on it
+        for eps in (0.0, prox) if prox else (0.0,):
+            if nullspace:
+                sol, x_new = _nullspace_level(
+                    hard, lv, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i], relax, eps
+                )
+            else:
+                sol, x_new = _cascade_level(
+                    hard, lv, Eb, e, prev_C, prev_lo, prev_hi, solvers[i], relax, center, eps
+                )
+            if sol is not None:
+                _record(timer, sol, lv.name)
+            if sol is None or (sol.success and x_new is not None):
+                break
+            retries += eps == 0.0 and prox > 0
         elapsed = time.perf_counter() - t0
-        if sol is not None:
-            _record(timer, sol, lv.name)
-            if not sol.success or x_new is None:
-                msg = f"level {lv.name!r}: {sol.solver}: {sol.status}: {sol.message}"
-                return HierarchyResult(np.zeros(n) if x is None else x, False, msg, results)
+        if sol is not None and (not sol.success or x_new is None):
+            msg = f"level {lv.name!r}: {sol.solver}: {sol.status}: {sol.message}"
+            return HierarchyResult(np.zeros(n) if x is None else x, False, msg, results, retries)
         x = x_new
         assert x is not None
         res = _level_result(lv, x, sol, elapsed)
@@ -356,7 +389,7 @@ def _solve_sequential(
         if nullspace:
             x_p = x
     assert x is not None
-    return HierarchyResult(x, True, "", results)
+    return HierarchyResult(x, True, "", results, retries)
 
 
 def _cascade_level(
@@ -369,16 +402,27 @@ def _cascade_level(
     prev_hi: list[Array],
     solver: QPSolver,
     relax: float,
+    center: Array,
+    prox: float,
 ) -> tuple[Solution, Array | None]:
-    """QP over z = (x, w, v): min ½‖w‖² + ½‖v‖², A x − w = b, l ≤ C x − v ≤ u, E x = e."""
+    """QP over z = (x, w, v): min ½‖w‖² + ½‖v‖² + ½ prox ‖x − center‖², A x − w = b,
+    l ≤ C x − v ≤ u, E x = e."""
     n = hard.n
     assert lv.A is not None and lv.C is not None and lv.b is not None
     assert lv.l is not None and lv.u is not None
     m, r = lv.A.shape[0], lv.C.shape[0]
     nx = n + m + r
     H = np.zeros((nx, nx))
-    H[n:, n:] = np.eye(m + r)
     g = np.zeros(nx)
+    if prox:
+        # regularise only the feasible directions (those the held equalities leave free) that
+        # the level's objective does not see
+        assert hard.A is not None
+        _, Zf = row_space_and_null_space(np.vstack([hard.A, E]))
+        P = Zf @ _null_projector(lv.A @ Zf) @ Zf.T
+        H[:n, :n] = prox * P
+        g[:n] = -prox * (P @ center)
+    H[n:, n:] = np.eye(m + r)
     eq_rows: list[tuple[Array, Array]] = []
     if E.shape[0]:
         eq_rows.append((np.hstack([E, np.zeros((E.shape[0], m + r))]), e))
@@ -413,6 +457,7 @@ def _nullspace_level(
     prev_hi: list[Array],
     solver: QPSolver,
     relax: float,
+    prox: float,
 ) -> tuple[Solution | None, Array | None]:
     """QP over (y, v) with x = x_p + Z y: min ½‖A Z y − (b − A x_p)‖² + ½‖v‖²."""
     assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
@@ -424,7 +469,11 @@ def _nullspace_level(
     nx = d + r
     AZ = lv.A @ Z
     H = np.zeros((nx, nx))
+    # the proximal term centred on x_p: ‖Z y‖² = ‖y‖² (Z orthonormal)
     H[:d, :d] = AZ.T @ AZ
+    if prox:
+        # regularise only the directions the level's objective does not see
+        H[:d, :d] += prox * _null_projector(AZ)
     H[d:, d:] = np.eye(r)
     g = np.zeros(nx)
     g[:d] = -AZ.T @ (lv.b - lv.A @ x_p)
@@ -512,6 +561,17 @@ def _solve_rqr(
         )
     result = solve_hls(levels)
     x = result.x
+    hard_stats = result.levels[0]
+    _record(
+        timer,
+        Solution(
+            SolutionStatus.SOLVED,
+            iterations=hard_stats.iterations,
+            wall_time=hard_stats.time,
+            solver="rqr",
+        ),
+        "hard",
+    )
     out = []
     for lv, stats in zip(soft, result.levels[1:], strict=True):
         sol = Solution(
