@@ -40,7 +40,7 @@ class OsfHqpConfig(OsfBaseConfig):
         description="diagonal of W_c per contact (fx fy fz mx my mz), or one value per wrench row",
     )
     regularization: float = Field(
-        1e-9, ge=0, description="weight of ‖F_r‖² in the task levels (keeps their Hessian > 0)"
+        1e-6, ge=0, description="weight of ‖F_r‖² [1/N²] in every QP (keeps the Hessians > 0)"
     )
     carry_tolerance: float = Field(
         1e-6,

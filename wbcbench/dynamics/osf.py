@@ -91,11 +91,12 @@ def _spd_inverse(A: np.ndarray) -> np.ndarray:
 # -- decompositions -------------------------------------------------------------------------------
 
 
-def _rank(diag: np.ndarray, rcond: float) -> int:
-    """Numerical rank from a non-increasing vector of |R_ii| or singular values."""
+def _rank(diag: np.ndarray, rcond: float, scale: float = 0.0) -> int:
+    """Numerical rank from a non-increasing vector of |R_ii| or singular values: those above
+    ``rcond · max(largest, scale)``."""
     if diag.size == 0 or diag[0] <= 0.0:
         return 0
-    return int(np.count_nonzero(diag > rcond * diag[0]))
+    return int(np.count_nonzero(diag > rcond * max(float(diag[0]), scale)))
 
 
 @dataclass
@@ -146,23 +147,29 @@ def svd(Y: np.ndarray, rcond: float = 1e-9) -> Decomposition:
     return Decomposition(pinv=pinv, right_null=vt[r:].T, left_null=u[:, r:], rank=r)
 
 
-def psd_pinv(X: np.ndarray, method: str = "cod", rcond: float = 1e-9) -> tuple[np.ndarray, int]:
+def psd_pinv(
+    X: np.ndarray, method: str = "cod", rcond: float = 1e-9, scale: float = 0.0
+) -> tuple[np.ndarray, int]:
     """Pseudo-inverse of a symmetric positive semidefinite (m, m) matrix and its rank.
 
     ``cod``: pivoted Householder QR ``X P = Q R`` reveals the range Q₁ (X is symmetric, so its
     range is its row space), and ``X = Q₁ C Q₁ᵀ`` with C = Q₁ᵀ X Q₁ positive definite: the
     complete orthogonal decomposition gives ``X⁺ = Q₁ C⁻¹ Q₁ᵀ`` by one Cholesky solve. ``svd``:
-    from the singular values.
+    from the singular values. The rank counts the values above ``rcond · max(largest, scale)``:
+    ``scale`` is the size X would have without the projections that made it small (a task fully
+    determined by the levels above has X ≈ 0, whose noise must not be inverted).
     """
     m = X.shape[0]
     if m == 0:
         return np.zeros((0, 0)), 0
     if method == "svd":
         u, s, _ = np.linalg.svd(X)
-        r = _rank(s, rcond)
-        return (u[:, :r] / s[:r]) @ u[:, :r].T, r
+        r = _rank(s, rcond, scale)
+        return (u[:, :r] / s[:r]) @ u[:, :r].T, r  # r = 0 gives the zero matrix
     qr, _, tau, _, _ = lapack.dgeqp3(X)
-    r = _rank(np.abs(np.diag(qr)), rcond)
+    r = _rank(np.abs(np.diag(qr)), rcond, scale)
+    if r == 0:
+        return np.zeros((m, m)), 0
     if r == m:
         return _spd_inverse(X), m
     q, _, _ = lapack.dorgqr(qr, tau)
@@ -446,15 +453,20 @@ class OsfModel:
         Ybar, Nw = dynamically_consistent_inverse(cd, state.M, self.inverse, self.rcond)
         W = cd.W
         Phi_a = cd.Phi[:, 6:]
+        Minv = state.Minv
         levels: list[LevelParams] = []
         N: np.ndarray | None = None
         for i, (J, drift) in enumerate(jacobians):
             Jhat = J @ Phi_a
             bias = J @ cd.qdd0 + drift
-            a = J @ Ybar if N is None else (J @ Ybar) @ N
+            Js = J @ Ybar
+            a = Js if N is None else Js @ N
             X = a @ W @ a.T
+            # the task's inverse inertia without contacts or levels above, J M⁻¹ Jᵀ, sets the
+            # scale its rank is judged against (a task the contacts fix entirely has X ≈ 0)
+            scale = float(np.max(np.einsum("ij,ij->i", J @ Minv, J), initial=0.0))
             Lam, _ = psd_pinv(
-                0.5 * (X + X.T), "svd" if self.inverse == "svd" else "cod", self.rcond
+                0.5 * (X + X.T), "svd" if self.inverse == "svd" else "cod", self.rcond, scale
             )
             B = a.T @ Lam
             E = B if self.kinds[i] == "acceleration" else a.T
