@@ -1,0 +1,137 @@
+"""The parameter server: inline, periodic:N and async (worker process, shared memory)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from wbcbench.controllers.base import ControllerContext
+from wbcbench.controllers.registry import make_controller
+from wbcbench.dynamics.osf import OsfModel, OsfParams, group_levels
+from wbcbench.dynamics.state import RobotState
+from wbcbench.errors import ControllerError
+from wbcbench.robots.loader import Robot
+from wbcbench.scenarios.load import build_contacts, build_tasks, load_scenario, torque_limits
+from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
+from wbcbench.sim.params import ParameterServer, ParamsMode, parse_params_mode
+
+from .conftest import random_standing_state
+
+threadpool_limits(1)
+
+FRAMES = ["l_sole", "r_sole"]
+
+
+def model(robot: Robot) -> OsfModel:
+    loaded = load_scenario("tocabi_stand_sway")
+    tasks = build_tasks(loaded.spec, robot)
+    return OsfModel(group_levels(tasks), FRAMES, affine=True)
+
+
+def same(a: OsfParams, b: OsfParams, tol: float = 1e-10) -> bool:
+    return all(
+        x.shape == y.shape and np.abs(x - y).max(initial=0.0) <= tol * max(1.0, np.abs(y).max())
+        for x, y in zip(a.arrays(), b.arrays(), strict=True)
+    )
+
+
+def test_parse_modes() -> None:
+    assert parse_params_mode("inline") == ParamsMode("inline")
+    assert parse_params_mode("periodic:5") == ParamsMode("periodic", 5)
+    assert str(parse_params_mode("periodic:5")) == "periodic:5"
+    assert parse_params_mode("async").kind == "async"
+    for bad in ("periodic", "periodic:0", "periodic:x", "sometimes"):
+        with pytest.raises(ControllerError, match=r"valid choices: inline, periodic:N, async"):
+            parse_params_mode(bad)
+
+
+def test_inline_and_periodic(tocabi: Robot) -> None:
+    m = model(tocabi)
+    rng = np.random.default_rng(0)
+    states = [random_standing_state(tocabi, rng) for _ in range(7)]
+    with ParameterServer(m, "periodic:3", tocabi) as periodic:
+        inline = ParameterServer(m, "inline", tocabi)
+        for tick, (q, v) in enumerate(states):
+            rp = periodic.get(RobotState(tocabi, q, v), tick)
+            ri = inline.get(RobotState(tocabi, q, v), tick)
+            assert ri.staleness == 0 and ri.params.tick == tick
+            assert rp.staleness == tick % 3
+            q0, v0 = states[tick - tick % 3]
+            assert same(rp.params, m.params(RobotState(tocabi, q0, v0)))
+            assert rp.loop_time >= 0.0 and rp.compute_time > 0.0
+
+
+def test_async_worker_serves_consistent_sets_and_stops(tocabi: Robot) -> None:
+    """Every set the loop reads is exactly the parameters of the state of its tick (no torn
+    reads), staleness is reported, and close() ends the worker and frees the shared memory."""
+    m = model(tocabi)
+    rng = np.random.default_rng(1)
+    states = [random_standing_state(tocabi, rng) for _ in range(40)]
+    server = ParameterServer(m, "async", tocabi)
+    seen = []
+    try:
+        for tick, (q, v) in enumerate(states):
+            read = server.get(RobotState(tocabi, q, v), tick)
+            assert read.staleness == tick - read.params.tick >= 0
+            seen.append(read)
+            time.sleep(2e-3)  # a slow control loop: the worker keeps up
+        assert server.worker_alive
+        proc, shm_name = server._proc, server._shm.name  # type: ignore[union-attr]
+    finally:
+        server.close()
+    fresh = [r for r in seen if r.params.tick > 0]
+    assert len(fresh) >= 10, "the worker never delivered"
+    assert min(r.staleness for r in seen[5:]) <= 2
+    for r in fresh:
+        q, v = states[r.params.tick]
+        assert same(r.params, m.params(RobotState(tocabi, q, v)))
+    assert not proc.is_alive()
+    from multiprocessing.shared_memory import SharedMemory
+
+    with pytest.raises(FileNotFoundError):
+        SharedMemory(name=shm_name)
+    server.close()  # idempotent
+
+
+def test_closed_loop_with_async_params_cleans_up(tocabi: Robot) -> None:
+    """The runner closes the controller however the run ends: no worker survives it."""
+    import multiprocessing as mp
+
+    loaded = load_scenario("tocabi_stand_sway", ["duration=0.2"])
+    before = set(mp.active_children())
+    result = run_closed_loop(
+        loaded,
+        RunSettings(controller="osf_hqp", solver="daqp", controller_config={"params": "async"}),
+    )
+    assert result.status == "ok", result.message
+    stale = result.log.arrays()["diag.params_staleness"]
+    assert np.all(stale >= 0) and stale.max() >= 1
+    assert "time.params" in result.log.columns
+    time.sleep(0.1)
+    assert set(mp.active_children()) <= before
+
+
+def test_controller_close_stops_the_worker(tocabi: Robot) -> None:
+    loaded = load_scenario("tocabi_stand_sway")
+    ctx = ControllerContext(
+        robot=tocabi,
+        tasks=build_tasks(loaded.spec, tocabi),
+        contacts=build_contacts(loaded.spec, tocabi),
+        tau_max=torque_limits(loaded.spec, tocabi),
+        solver="daqp",
+    )
+    ctrl = make_controller("to_osf", ctx, {"params": "async"})
+    q, v = tocabi.keyframe("stand")
+    ctrl.start(RobotState(tocabi, q, v))
+    for tick in range(5):
+        out = ctrl.step(RobotState(tocabi, q, v), 1e-3 * tick)
+        assert out.ok, out.message
+        assert "params" in out.timings and out.diagnostics["params_staleness"] >= 0
+    server = ctrl.server  # type: ignore[attr-defined]
+    proc = server._proc
+    assert proc is not None and proc.is_alive()
+    ctrl.close()
+    assert not proc.is_alive()
