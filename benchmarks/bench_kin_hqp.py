@@ -34,7 +34,7 @@ from wbcbench.scenarios.load import (
     torque_limits,
 )
 from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
-from wbcbench.sim.kinematic import scenario_obstacles
+from wbcbench.sim.setup import scenario_obstacles
 
 SCENARIOS = ("rqr_reach", "rqr_gaze", "rqr_stress")
 FIG1_SIZES = (10, 20, 40, 60, 80, 100)

@@ -30,7 +30,7 @@ from wbcbench.scenarios.load import (
     torque_limits,
 )
 from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
-from wbcbench.sim.kinematic import scenario_obstacles
+from wbcbench.sim.setup import scenario_obstacles
 from wbcbench.tasks.collision import (
     Box,
     CollisionModel,

@@ -22,19 +22,17 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from wbcbench.controllers.base import ControllerContext, ControlOutput
-from wbcbench.controllers.registry import controller_class, make_controller
+from wbcbench.controllers.base import ControlOutput
+from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.convert import mj_to_pin, torque_to_ctrl
 from wbcbench.robots.loader import Robot, load_robot
 from wbcbench.scenarios.load import (
     LoadedScenario,
-    build_contacts,
-    build_tasks,
     check_against_robot,
-    controller_settings,
     torque_limits,
 )
+from wbcbench.sim.setup import build_controller
 
 STAGES = ("dynamics", "build", "solve", "solve_internal", "total")
 LOST_CONTACT_TICKS = 50
@@ -192,22 +190,9 @@ def run_closed_loop(
     data.qvel[:] = qvel
     mujoco.mj_forward(model, data)
 
-    tasks = build_tasks(spec, robot)
-    contacts = build_contacts(spec, robot)
-    tau_max = torque_limits(spec, robot)
-    ctx = ControllerContext(
-        robot=robot,
-        tasks=tasks,
-        contacts=contacts,
-        tau_max=tau_max,
-        solver=settings.solver,
-        tier=settings.tier,
-        mode=settings.mode,
-        dt=spec.dt,
-    )
-    cfg = {**controller_settings(loaded, settings.controller), **settings.controller_config}
-    controller = make_controller(settings.controller, ctx, cfg)
-
+    controller = build_controller(loaded, settings, robot)
+    contacts = controller.ctx.contacts
+    tau_max = controller.ctx.tau_max
     frames = [c.frame for c in contacts]
     sensor = ContactSensor(model, robot, frames)
     substeps = max(1, round(spec.dt / model.opt.timestep))
@@ -242,7 +227,10 @@ def run_closed_loop(
                 consecutive += 1
                 tau = last_tau
                 if consecutive >= spec.sim.max_consecutive_failures:
-                    status, message = "failed", f"{consecutive} failed ticks in a row: {out.message}"
+                    status, message = (
+                        "failed",
+                        f"{consecutive} failed ticks in a row: {out.message}",
+                    )
             last_tau = tau
             applied = tau + friction_torque(robot, model, v[6:]) if compensate else tau
             data.ctrl[:] = torque_to_ctrl(robot, applied)

@@ -26,26 +26,17 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from wbcbench.controllers.base import ControllerContext, ControlOutput
-from wbcbench.controllers.registry import controller_class, make_controller
+from wbcbench.controllers.base import ControlOutput
+from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import WbcBenchError
 from wbcbench.robots.loader import Robot, load_robot
 from wbcbench.scenarios.load import (
     LoadedScenario,
-    build_contacts,
-    build_tasks,
     check_against_robot,
-    controller_settings,
-    torque_limits,
 )
 from wbcbench.sim.closed_loop import RunLog, RunResult, RunSettings
-from wbcbench.tasks.collision import Box
-
-
-def scenario_obstacles(loaded: LoadedScenario) -> list[Box]:
-    """The scenario's fixed boxes (``environment.obstacles``)."""
-    return [Box.from_rpy(o.name, o.pos, o.size, o.rpy) for o in loaded.spec.environment.obstacles]
+from wbcbench.sim.setup import build_controller
 
 
 def run_kinematic(
@@ -77,28 +68,8 @@ def run_kinematic(
     reason = controller_class(settings.controller).applies_to(spec)
     if reason:
         raise WbcBenchError(f"{loaded.path}: {reason}")
-    tasks = build_tasks(spec, robot)
-    contacts = build_contacts(spec, robot)
-    tau_max = torque_limits(spec, robot)
-    ctx = ControllerContext(
-        robot=robot,
-        tasks=tasks,
-        contacts=contacts,
-        tau_max=tau_max,
-        solver=settings.solver,
-        tier=settings.tier,
-        mode=settings.mode,
-        dt=spec.dt,
-    )
-    cfg = {**controller_settings(loaded, settings.controller), **settings.controller_config}
-    controller = make_controller(settings.controller, ctx, cfg)
-    use_environment = getattr(controller, "use_environment", None)
-    if use_environment is not None:
-        use_environment(scenario_obstacles(loaded))
-    elif spec.environment.obstacles:
-        raise WbcBenchError(
-            f"{loaded.path}: environment.obstacles: {settings.controller} cannot avoid obstacles"
-        )
+    controller = build_controller(loaded, settings, robot)
+    contacts = controller.ctx.contacts
 
     model = robot.pin_model
     q, _ = robot.keyframe(spec.initial.keyframe)
@@ -184,6 +155,6 @@ def run_kinematic(
         wall_time=time.perf_counter() - wall0,
         robot=robot,
         contact_frames=frames,
-        tau_max=tau_max,
+        tau_max=controller.ctx.tau_max,
         task_parts=task_parts,
     )

@@ -15,17 +15,13 @@ from typing import Any
 import numpy as np
 
 from wbcbench.controllers.base import ControllerContext, ControlOutput
-from wbcbench.controllers.registry import make_controller
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.loader import Robot, load_robot
 from wbcbench.scenarios.load import (
     LoadedScenario,
-    build_contacts,
-    build_tasks,
-    controller_settings,
-    torque_limits,
 )
 from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
+from wbcbench.sim.setup import build_controller
 
 
 @dataclass
@@ -117,20 +113,14 @@ def replay(
     """
     spec = loaded.spec
     robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
-    ctx = _WrappingContext(
-        robot=robot,
-        tasks=build_tasks(spec, robot),
-        contacts=build_contacts(spec, robot),
-        tau_max=torque_limits(spec, robot),
-        solver=settings.solver,
-        tier=settings.tier,
-        mode=settings.mode,
-        dt=spec.dt,
+    controller = build_controller(
+        loaded,
+        settings,
+        robot,
+        context_cls=_WrappingContext,
         keep_problems=keep_problems,
         wrap=wrap_solver,
     )
-    cfg = {**controller_settings(loaded, settings.controller), **settings.controller_config}
-    controller = make_controller(settings.controller, ctx, cfg)
     data = robot.pin_model.createData()
     columns: dict[str, list[float]] = {}
     failures = 0

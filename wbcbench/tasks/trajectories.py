@@ -124,8 +124,8 @@ def spline_there_and_back(
     return PiecewiseCubic(times, values)
 
 
-class MinimumJerk(Trajectory):
-    """Quintic minimum-jerk move between waypoints (rest at each waypoint), held outside them."""
+class _Waypoints(Trajectory):
+    """Values at increasing times, held before the first and after the last."""
 
     def __init__(self, times: np.ndarray, values: np.ndarray) -> None:
         self._times = [float(x) for x in np.asarray(times, dtype=float)]
@@ -143,7 +143,17 @@ class MinimumJerk(Trajectory):
             return self._values[-1], self._zero, self._zero
         i = bisect.bisect_right(self._times, t) - 1
         duration = self._times[i + 1] - self._times[i]
-        s = (t - self._times[i]) / duration
+        return self._piece(i, (t - self._times[i]) / duration, duration)
+
+    @abstractmethod
+    def _piece(self, i: int, s: float, duration: float) -> Sample:
+        """(x, ẋ, ẍ) at the fraction s ∈ [0, 1) of piece i lasting ``duration`` [s]."""
+
+
+class MinimumJerk(_Waypoints):
+    """Quintic minimum-jerk move between waypoints (rest at each waypoint), held outside them."""
+
+    def _piece(self, i: int, s: float, duration: float) -> Sample:
         delta = self._values[i + 1] - self._values[i]
         p = s**3 * (10 - 15 * s + 6 * s * s)
         dp = 30 * s * s * (1 - s) ** 2 / duration
@@ -151,25 +161,9 @@ class MinimumJerk(Trajectory):
         return self._values[i] + p * delta, dp * delta, ddp * delta
 
 
-class PiecewiseLinear(Trajectory):
+class PiecewiseLinear(_Waypoints):
     """Linear interpolation between waypoints (for step-like references); zero acceleration."""
 
-    def __init__(self, times: np.ndarray, values: np.ndarray) -> None:
-        self._times = [float(x) for x in np.asarray(times, dtype=float)]
-        values = np.asarray(values, dtype=float)
-        if values.ndim == 1:
-            values = values[:, None]
-        self._values = values
-        self.dim = values.shape[1]
-        self._zero = np.zeros(self.dim)
-
-    def sample(self, t: float) -> Sample:
-        if t <= self._times[0]:
-            return self._values[0], self._zero, self._zero
-        if t >= self._times[-1]:
-            return self._values[-1], self._zero, self._zero
-        i = bisect.bisect_right(self._times, t) - 1
-        duration = self._times[i + 1] - self._times[i]
-        s = (t - self._times[i]) / duration
-        slope = (self._values[i + 1] - self._values[i]) / duration
-        return self._values[i] + s * duration * slope, slope, self._zero
+    def _piece(self, i: int, s: float, duration: float) -> Sample:
+        delta = self._values[i + 1] - self._values[i]
+        return self._values[i] + s * delta, delta / duration, self._zero
