@@ -74,10 +74,10 @@ class ControlOutput:
         wrench: the stacked contact wrenches it predicts (6c,), reaction on the robot.
         qd: the joint velocity command (n,) of velocity-level (kinematic) controllers, else None.
         terms: the evaluated tasks (errors for the logs).
-        timings: seconds per stage: ``dynamics``, ``build``, ``solve`` (wall time of the solver
-            library: building or updating its object, ``solve_setup``, plus the native solve
-            calls), ``solve_internal`` (solver-reported, NaN if none), ``total``; and per level
-            ``solve.<level>``.
+        timings: seconds per stage: ``dynamics``, ``build``, ``solve`` (the whole call into the
+            QP layer), within it ``solve_setup`` (building or updating the solver's object) and
+            ``solve_native`` (the native solve call), ``solve_internal`` (solver-reported, NaN if
+            none), ``total``; and per level ``solve.<level>``.
         ok: every QP solved.
         message: failure message when not ok.
         iterations: total solver iterations (NaN if unreported).
@@ -103,8 +103,8 @@ class StageTimer:
 
     ``dynamics`` is what the RobotState spent in Pinocchio during the step (its quantities are
     lazy, so they are computed wherever the controller first asks for them); ``solve`` is the
-    wall time spent in the solver library (object set-up or update plus the native calls);
-    ``build`` is the rest: evaluating tasks and formulating the QPs.
+    wall time of the calls into the QP layer (validation, the solver object's set-up or update,
+    the native call); ``build`` is the rest: evaluating tasks and formulating the QPs.
     """
 
     def __init__(self, state: RobotState) -> None:
@@ -113,15 +113,19 @@ class StageTimer:
         self._dyn0 = state.compute_time
         self.solve = 0.0
         self.solve_setup = 0.0
+        self.solve_native = 0.0
         self.solve_internal = 0.0
         self.internal_known = True
         self.levels: dict[str, float] = {}
         self.iterations = 0.0
 
     def add_solution(self, sol: Solution, level: str | None = None) -> None:
-        # building / updating the solver's own object is part of the solver's cost
-        self.solve += sol.setup_time + sol.wall_time
+        # the whole call into the QP layer: validation, set-up / update of the solver's object,
+        # the native solve and reading the result back (``solve_native`` is the native call)
+        call = sol.call_time or (sol.setup_time + sol.wall_time)
+        self.solve += call
         self.solve_setup += sol.setup_time
+        self.solve_native += sol.wall_time
         if sol.internal_time is None:
             self.internal_known = False
         else:
@@ -130,7 +134,7 @@ class StageTimer:
             self.iterations += sol.iterations
         if level is not None:
             key = f"solve.{level}"
-            self.levels[key] = self.levels.get(key, 0.0) + sol.setup_time + sol.wall_time
+            self.levels[key] = self.levels.get(key, 0.0) + call
 
     def finish(self) -> dict[str, float]:
         total = time.perf_counter() - self._t0
@@ -140,6 +144,7 @@ class StageTimer:
             "build": max(0.0, total - dynamics - self.solve),
             "solve": self.solve,
             "solve_setup": self.solve_setup,
+            "solve_native": self.solve_native,
             "solve_internal": self.solve_internal if self.internal_known else float("nan"),
             "total": total,
         }

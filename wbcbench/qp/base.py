@@ -14,6 +14,7 @@ Timing is measured by the backend, around native calls only (see :class:`Solutio
 
 from __future__ import annotations
 
+import time
 from collections.abc import Hashable
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -122,6 +123,7 @@ class QPSolver:
             The Solution. A backend exception is returned as status ``failed`` with the
             exception text as message, so a benchmark sweep goes on.
         """
+        t_call = time.perf_counter()
         try:
             problem.validate()
             guess = self._guess(problem, x0)
@@ -144,6 +146,7 @@ class QPSolver:
             sol.internal_time_covers = self.internal_time_covers
         if sol.success and sol.x is not None:
             self.previous = sol
+        sol.call_time = time.perf_counter() - t_call
         if raise_on_failure and not sol.success:
             raise SolverError(
                 f"{self.name} ({self.mode}, tier {self.tier}) returned {sol.status}"

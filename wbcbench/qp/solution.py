@@ -46,6 +46,8 @@ class Solution:
         iterations: the solver's iteration count (its own definition), or ``None``.
         wall_time: [s] ``time.perf_counter`` around the native solve call(s) only.
         setup_time: [s] building (or, in hot mode, updating) the native object and matrices.
+        call_time: [s] the whole ``QPSolver.solve`` call: validation, change detection, set-up,
+            the native call and reading the result back (what a controller pays).
         internal_time: [s] the solver's own timer, or ``None`` when unavailable.
         internal_time_covers: what ``internal_time`` measures (``"solve"``,
             ``"setup+solve"``) or ``""`` when unavailable.
@@ -66,6 +68,7 @@ class Solution:
     iterations: int | None = None
     wall_time: float = 0.0
     setup_time: float = 0.0
+    call_time: float = 0.0
     internal_time: float | None = None
     internal_time_covers: str = ""
     objective: float = float("nan")
