@@ -6,6 +6,8 @@
   predicted (commanded) and simulated wrenches, each the maximum over the run; for kinematic
   runs instead, ``joint_limit_violation`` [rad] and ``min_collision_distance`` [m];
 * failures: failed control ticks;
+* amendments: ``amend_mean`` / ``amend_max`` per task over the window, for controllers that
+  report ``diag.amend.<task>`` (to_osf);
 * timing: per stage ``t_<stage>_median_us`` and friends, after the warm-up ticks.
 """
 
@@ -87,8 +89,17 @@ def run_metrics(
             MetricRow("*", "min_collision_distance", float(np.min(cols["collision_distance"])), "m")
         )
     rows.append(MetricRow("*", "solve_failures", float(result.failures), "ticks"))
+    # task-reference amendments ‖ẍ_opt − ẍ*‖ of the optimising OSF controllers (to_osf)
+    for key in cols:
+        if key.startswith("diag.amend."):
+            w = cols[key][mask]
+            w = w[np.isfinite(w)]
+            if w.size:
+                task = key.removeprefix("diag.amend.")
+                rows.append(MetricRow(task, "amend_mean", float(np.mean(w)), "m/s²|rad/s²"))
+                rows.append(MetricRow(task, "amend_max", float(np.max(w)), "m/s²|rad/s²"))
 
-    for stage in ("dynamics", "build", "solve", "solve_internal", "total"):
+    for stage in ("dynamics", "build", "params", "solve", "solve_internal", "total"):
         key = f"time.{stage}"
         if key not in cols:
             continue
