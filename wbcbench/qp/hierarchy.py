@@ -23,6 +23,22 @@ Strategies:
   inequalities and equalities conflict.
 
 Cascade and nullspace give the same solution whenever the finals determine it uniquely.
+
+Two options of the sequential strategies save QPs without changing the solution they define:
+
+* ``merge_finals`` — the finals' weighted ``weight ‖F x − f‖²`` is added to the last level's cost
+  instead of a QP of its own (RC-LQP paper eq. 28: the acceleration energy is part of the LQP's
+  cost, not a priority). The last level's optimum moves by O(weight).
+* ``PriorityLevel.hard_if_feasible`` (null-space strategy) — when a level can be met exactly
+  together with the levels above (zero slacks), its optimal set is its feasible set: the level is
+  then held as hard constraints inside the next level's QP (if that level has no inequalities of
+  its own), one QP for both. The level is solved on its own only when that QP is infeasible.
+  Meant for constraint levels (contacts, wrench cones, limits), which are met in all but extreme
+  states.
+* ``slack_free_first`` — a level with inequalities of its own is first solved with them hard (no
+  slack variables). When that QP is feasible and the multipliers of the level's inequalities
+  vanish, (x, v = 0) satisfies the optimality conditions of the slack QP, so it is its optimum;
+  otherwise the slack QP is solved as usual.
 """
 
 from __future__ import annotations
@@ -33,6 +49,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import scipy.linalg
+from scipy.linalg import lapack
 
 from wbcbench.errors import UnknownNameError
 from wbcbench.qp.base import QPSolver
@@ -98,6 +115,9 @@ class PriorityLevel:
     l: Array | None = None  # noqa: E741 - the QP literature's symbol for the lower bound
     u: Array | None = None
     weight: float = 1.0
+    #: null-space strategy: held as hard constraints when the next level's QP is feasible with
+    #: them hard (then their optimal slacks are zero), one QP for both levels
+    hard_if_feasible: bool = False
 
     def prepared(self, n: int) -> PriorityLevel:
         A = _rows(self.A, n)
@@ -110,6 +130,7 @@ class PriorityLevel:
             _vec(self.l, C.shape[0], -np.inf),
             _vec(self.u, C.shape[0], np.inf),
             self.weight,
+            self.hard_if_feasible,
         )
 
 
@@ -151,6 +172,19 @@ class HierarchyResult:
 # -- linear algebra --------------------------------------------------------------------------
 
 
+def _qr_pivoted(B: Array) -> tuple[Array, Array, Array]:
+    """Column-pivoted Householder QR of B (n, p): full Q (n, n), R (min(n, p), p), 0-based
+    pivots; LAPACK called directly (scipy.linalg.qr's checks and workspace queries cost as much
+    as the factorisation at these sizes)."""
+    n, p = B.shape
+    qr, jpvt, tau, _, _ = lapack.dgeqp3(B)
+    k = min(n, p)
+    F = np.zeros((n, n), order="F")
+    F[:, :k] = qr[:, :k]
+    Q, _, _ = lapack.dorgqr(F, tau[:k])
+    return Q, np.triu(qr[:k]), jpvt - 1
+
+
 def row_space_and_null_space(E: Array, tol: float = RANK_TOL) -> tuple[Array, Array]:
     """Orthonormal bases (R, Z) of the row space and null space of E (p, n).
 
@@ -160,7 +194,7 @@ def row_space_and_null_space(E: Array, tol: float = RANK_TOL) -> tuple[Array, Ar
     n = E.shape[1]
     if E.shape[0] == 0:
         return np.zeros((0, n)), np.eye(n)
-    Q, R, _ = scipy.linalg.qr(E.T, pivoting=True, mode="full", check_finite=False)
+    Q, R, _ = _qr_pivoted(E.T)
     diag = np.abs(np.diag(R))
     rank = int(np.sum(diag > tol * max(1.0, diag[0]))) if diag.size else 0
     return Q[:, :rank].T, Q[:, rank:]
@@ -188,8 +222,15 @@ def solve_hierarchy(
     solvers: list[QPSolver] | None = None,
     timer: StageTimer | None = None,
     prox: float = 0.0,
+    merge_finals: bool = False,
+    slack_free_first: bool = False,
 ) -> HierarchyResult:
     """Solve the hierarchy; ``solvers`` holds one QP handle per level then per final.
+
+    With ``slack_free_first`` a second set of handles, ``solvers[len(levels) + len(finals):]``,
+    is used for the slack QPs when given (hot solvers then keep one problem structure each).
+    ``merge_finals`` and ``slack_free_first`` apply to the cascade and null-space strategies
+    (see the module docstring); ``merge_finals`` needs at least one level.
 
     ``prox`` > 0: a level whose QP the backend fails to solve is solved again with
     ``prox ‖P_l (x − x_c)‖²`` added (cascade and null-space strategies), P_l the projector onto
@@ -212,7 +253,21 @@ def solve_hierarchy(
         raise ValueError("one solver handle per level (and per final) is needed")
     if strategy == "weighted":
         return _solve_weighted(hard, soft, solvers[0], timer)
-    return _solve_sequential(hard, soft, n_finals, solvers, timer, strategy == "nullspace", prox)
+    merged: list[PriorityLevel] = []
+    if merge_finals and levels and finals:
+        merged = soft[len(levels) :]
+        soft = soft[: len(levels)]
+    return _solve_sequential(
+        hard,
+        soft,
+        n_finals,
+        solvers,
+        timer,
+        strategy == "nullspace",
+        prox,
+        merged,
+        slack_free_first,
+    )
 
 
 def _record(timer: StageTimer | None, sol: Solution, name: str) -> None:
@@ -323,9 +378,13 @@ def _solve_sequential(
     timer: StageTimer | None,
     nullspace: bool,
     prox: float,
+    merged: list[PriorityLevel] = (),  # type: ignore[assignment]
+    slack_free_first: bool = False,
 ) -> HierarchyResult:
     n = hard.n
     assert hard.A is not None
+    n_soft = len(soft) + len(merged)
+    second = solvers[n_soft:] if len(solvers) >= 2 * n_soft else solvers
     held_rows: list[Array] = [hard.A]  # equalities held so far (hard first)
     prev_C: list[Array] = []  # previous levels' inequalities with their slacks fixed
     prev_lo: list[Array] = []
@@ -335,15 +394,46 @@ def _solve_sequential(
     retries = 0
     Eb = np.zeros((0, n))
     e = np.zeros(0)
-    R_hard, Z = row_space_and_null_space(hard.A)
-    # the hard equalities' minimum-norm solution, for the null-space strategy's x_p
     assert hard.b is not None
-    x_p = np.linalg.lstsq(hard.A, hard.b, rcond=None)[0] if hard.A.shape[0] else np.zeros(n)
+    # one factorisation of the hard equalities: bases and the minimum-norm solution x_p
+    R_hard, Z, x_p = _hard_factor(hard.A, hard.b)
+    last = len(soft) - 1
+    skip = False
     for i, lv in enumerate(soft):
+        if skip:  # solved together with the level above
+            skip = False
+            continue
+        extra = merged if i == last else []
         assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
         # growing with the level, so the previous optimum is strictly inside the widened set
         relax = FEAS_TOL * i
         t0 = time.perf_counter()
+        nxt = soft[i + 1] if i < last else None
+        if nullspace and lv.hard_if_feasible and nxt is not None and not _rows_of(nxt.C):
+            pair = _feasible_pair(
+                hard, lv, nxt, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i], FEAS_TOL * (i + 1),
+                merged if i + 1 == last else [], timer,
+            )  # fmt: skip
+            if pair is not None:
+                x, Z_next, sol = pair
+                elapsed = time.perf_counter() - t0
+                res = _level_result(lv, x, None, 0.0)
+                results += [res, _level_result(nxt, x, sol, elapsed)]
+                if i + 1 == last:
+                    break
+                assert nxt.A is not None
+                held_rows += [lv.A, nxt.A]
+                if lv.C.shape[0]:
+                    prev_C.append(lv.C)
+                    prev_lo.append(lv.l + res.v)
+                    prev_hi.append(lv.u + res.v)
+                Z = Z_next
+                if nxt.A.shape[0]:
+                    _, Zl = row_space_and_null_space(nxt.A @ Z)
+                    Z = Z @ Zl
+                x_p = x
+                skip = True
+                continue
         if not nullspace:
             E = np.vstack(held_rows[1:]) if len(held_rows) > 1 else np.zeros((0, n))
             # only the part of the held rows not already fixed by the hard equalities, so that
@@ -353,20 +443,37 @@ def _solve_sequential(
             e = Eb @ x if x is not None else np.zeros(0)
         center = x if x is not None else x_p
         # the bare level first; the proximal term only when the backend fails on it
-        for eps in (0.0, prox) if prox else (0.0,):
+        sol, x_new = None, None
+        if slack_free_first and lv.C.shape[0]:
+            # the level's inequalities hard: its optimum when their multipliers vanish
             if nullspace:
                 sol, x_new = _nullspace_level(
-                    hard, lv, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i], relax, eps
+                    hard, lv, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i], relax, 0.0, extra, True
                 )
             else:
                 sol, x_new = _cascade_level(
-                    hard, lv, Eb, e, prev_C, prev_lo, prev_hi, solvers[i], relax, center, eps
-                )
+                    hard, lv, Eb, e, prev_C, prev_lo, prev_hi, solvers[i], relax, center, 0.0,
+                    extra, True,
+                )  # fmt: skip
             if sol is not None:
                 _record(timer, sol, lv.name)
-            if sol is None or (sol.success and x_new is not None):
-                break
-            retries += eps == 0.0 and prox > 0
+        if x_new is None:
+            handle = second[i] if slack_free_first and lv.C.shape[0] else solvers[i]
+            for eps in (0.0, prox) if prox else (0.0,):
+                if nullspace:
+                    sol, x_new = _nullspace_level(
+                        hard, lv, x_p, Z, prev_C, prev_lo, prev_hi, handle, relax, eps, extra
+                    )
+                else:
+                    sol, x_new = _cascade_level(
+                        hard, lv, Eb, e, prev_C, prev_lo, prev_hi, handle, relax, center, eps,
+                        extra,
+                    )  # fmt: skip
+                if sol is not None:
+                    _record(timer, sol, lv.name)
+                if sol is None or (sol.success and x_new is not None):
+                    break
+                retries += eps == 0.0 and prox > 0
         elapsed = time.perf_counter() - t0
         if sol is not None and (not sol.success or x_new is None):
             msg = f"level {lv.name!r}: {sol.solver}: {sol.status}: {sol.message}"
@@ -375,7 +482,9 @@ def _solve_sequential(
         assert x is not None
         res = _level_result(lv, x, sol, elapsed)
         results.append(res)
-        # hold this level's optimum for the levels below
+        # hold this level's optimum for the levels below (nothing to hold after the last)
+        if i == len(soft) - 1:
+            break
         if lv.A.shape[0]:
             held_rows.append(lv.A)
             if nullspace:
@@ -389,7 +498,107 @@ def _solve_sequential(
         if nullspace:
             x_p = x
     assert x is not None
+    results.extend(_level_result(f, x, None, 0.0) for f in merged)
     return HierarchyResult(x, True, "", results, retries)
+
+
+def _rows_of(M: Array | None) -> int:
+    return 0 if M is None else int(M.shape[0])
+
+
+def _feasible_pair(
+    hard: Constraints,
+    lv: PriorityLevel,
+    nxt: PriorityLevel,
+    x_p: Array,
+    Z: Array,
+    prev_C: list[Array],
+    prev_lo: list[Array],
+    prev_hi: list[Array],
+    solver: QPSolver,
+    relax: float,
+    merged: list[PriorityLevel],
+    timer: StageTimer | None,
+) -> tuple[Array, Array, Solution | None] | None:
+    """Level ``lv`` held hard inside ``nxt``'s QP (see ``hard_if_feasible``).
+
+    Returns (x, Z with lv's equalities eliminated, the QP's solution), or None when lv cannot be
+    met exactly (inconsistent equalities, or the QP is infeasible / fails).
+    """
+    assert lv.A is not None and lv.b is not None and lv.C is not None
+    assert lv.l is not None and lv.u is not None
+    if lv.A.shape[0]:
+        r = lv.b - lv.A @ x_p
+        _, Zl, y0 = _hard_factor(lv.A @ Z, r)
+        x_l = x_p + Z @ y0
+        scale = 1.0 + float(np.abs(lv.b).max(initial=0.0))
+        if float(np.abs(lv.A @ x_l - lv.b).max()) > 1e3 * RANK_TOL * scale:
+            return None  # the equalities cannot be met together with the levels above
+        Z_l = Z @ Zl
+    else:
+        x_l, Z_l = x_p, Z
+    sol, x = _nullspace_level(
+        hard,
+        nxt,
+        x_l,
+        Z_l,
+        [*prev_C, lv.C],
+        [*prev_lo, lv.l],
+        [*prev_hi, lv.u],
+        solver,
+        relax,
+        0.0,
+        merged,
+    )
+    if sol is not None:
+        _record(timer, sol, nxt.name)
+    if x is None:
+        return None
+    return x, Z_l, sol
+
+
+def _hard_factor(A: Array, b: Array) -> tuple[Array, Array, Array]:
+    """Row-space basis R, null-space basis Z and minimum-norm solution of A x = b, from one QR."""
+    n = A.shape[1]
+    if A.shape[0] == 0:
+        return np.zeros((0, n)), np.eye(n), np.zeros(n)
+    Q, Rf, piv = _qr_pivoted(A.T)
+    diag = np.abs(np.diag(Rf))
+    rank = int(np.sum(diag > RANK_TOL * max(1.0, diag[0]))) if diag.size else 0
+    if rank == A.shape[0]:
+        # A[piv] = R₁ᵀ Q₁ᵀ: x = Q₁ R₁⁻ᵀ b[piv] is the minimum-norm solution
+        y = scipy.linalg.solve_triangular(Rf[:rank, :rank], b[piv], trans="T", check_finite=False)
+        x_p = Q[:, :rank] @ y
+    else:
+        x_p = np.linalg.lstsq(A, b, rcond=None)[0]
+    return Q[:, :rank].T, Q[:, rank:], x_p
+
+
+def _add_merged(
+    H: Array, g: Array, merged: list[PriorityLevel], Z: Array | None, x_p: Array | None
+) -> None:
+    """Add Σ weight ½‖F x − f‖² to a level's QP over x (Z None) or over y, x = x_p + Z y."""
+    d = H.shape[0] if Z is None else Z.shape[1]
+    for f in merged:
+        assert f.A is not None and f.b is not None
+        if Z is None:
+            H[:d, :d] += f.weight * (f.A.T @ f.A)
+            g[:d] -= f.weight * (f.A.T @ f.b)
+        else:
+            assert x_p is not None
+            FZ = f.A @ Z
+            H[:d, :d] += f.weight * (FZ.T @ FZ)
+            g[:d] += f.weight * (FZ.T @ (f.A @ x_p - f.b))
+
+
+def _own_multipliers_vanish(sol: Solution, r: int) -> bool:
+    """The last ``r`` inequality rows of the QP have (numerically) zero multipliers."""
+    if sol.z is None or sol.x is None:
+        return False
+    z = np.abs(sol.z[-r:])
+    scale = max(1.0, float(np.abs(sol.z).max(initial=0.0)), float(np.abs(sol.x).max()))
+    # a multiplier at the solver's tolerance changes the level's optimum at that tolerance only
+    return bool(z.max(initial=0.0) <= 1e-6 * scale)
 
 
 def _cascade_level(
@@ -404,13 +613,17 @@ def _cascade_level(
     relax: float,
     center: Array,
     prox: float,
+    merged: list[PriorityLevel] = (),  # type: ignore[assignment]
+    hard_own: bool = False,
 ) -> tuple[Solution, Array | None]:
     """QP over z = (x, w, v): min ½‖w‖² + ½‖v‖² + ½ prox ‖x − center‖², A x − w = b,
-    l ≤ C x − v ≤ u, E x = e."""
+    l ≤ C x − v ≤ u, E x = e; ``merged`` finals added to the cost; ``hard_own``: v = 0 (no
+    slack variables), accepted only when the level's inequality multipliers vanish."""
     n = hard.n
     assert lv.A is not None and lv.C is not None and lv.b is not None
     assert lv.l is not None and lv.u is not None
-    m, r = lv.A.shape[0], lv.C.shape[0]
+    m, r_own = lv.A.shape[0], lv.C.shape[0]
+    r = 0 if hard_own else r_own
     nx = n + m + r
     H = np.zeros((nx, nx))
     g = np.zeros(nx)
@@ -423,6 +636,7 @@ def _cascade_level(
         H[:n, :n] = prox * P
         g[:n] = -prox * (P @ center)
     H[n:, n:] = np.eye(m + r)
+    _add_merged(H[:n, :n], g[:n], merged, None, None)
     eq_rows: list[tuple[Array, Array]] = []
     if E.shape[0]:
         eq_rows.append((np.hstack([E, np.zeros((E.shape[0], m + r))]), e))
@@ -435,16 +649,21 @@ def _cascade_level(
     widened = [_widen(lp, hp, relax) for lp, hp in zip(prev_lo, prev_hi, strict=True)]
     lo = [w[0] for w in widened]
     hi = [w[1] for w in widened]
-    if r:
-        block = np.zeros((r, nx))
+    if r_own:
+        block = np.zeros((r_own, nx))
         block[:, :n] = lv.C
-        block[:, n + m :] = -np.eye(r)
+        if r:
+            block[:, n + m :] = -np.eye(r)
         C_rows.append(block)
         lo.append(lv.l)
         hi.append(lv.u)
     problem = _with_hard(hard, H, g, C_rows, lo, hi, nx, lv.name, eq_rows, relax)
     sol = solver.solve(problem)
-    return sol, (sol.x[:n] if sol.success and sol.x is not None else None)
+    if not sol.success or sol.x is None:
+        return sol, None
+    if hard_own and not _own_multipliers_vanish(sol, r_own):
+        return sol, None
+    return sol, sol.x[:n]
 
 
 def _nullspace_level(
@@ -458,12 +677,17 @@ def _nullspace_level(
     solver: QPSolver,
     relax: float,
     prox: float,
+    merged: list[PriorityLevel] = (),  # type: ignore[assignment]
+    hard_own: bool = False,
 ) -> tuple[Solution | None, Array | None]:
-    """QP over (y, v) with x = x_p + Z y: min ½‖A Z y − (b − A x_p)‖² + ½‖v‖²."""
+    """QP over (y, v) with x = x_p + Z y: min ½‖A Z y − (b − A x_p)‖² + ½‖v‖²; ``merged``
+    finals added to the cost; ``hard_own``: v = 0 (no slack variables), accepted only when the
+    level's inequality multipliers vanish."""
     assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
     assert hard.C is not None and hard.l is not None and hard.u is not None
     d = Z.shape[1]
-    r = lv.C.shape[0]
+    r_own = lv.C.shape[0]
+    r = 0 if hard_own else r_own
     if d == 0:
         return None, x_p.copy()
     nx = d + r
@@ -477,6 +701,7 @@ def _nullspace_level(
     H[d:, d:] = np.eye(r)
     g = np.zeros(nx)
     g[:d] = -AZ.T @ (lv.b - lv.A @ x_p)
+    _add_merged(H, g, merged, Z, x_p)
     C_list: list[Array] = []
     lo: list[Array] = []
     hi: list[Array] = []
@@ -488,7 +713,7 @@ def _nullspace_level(
             lower, upper = _widen(lower, upper, relax)
         block = np.zeros((C.shape[0], nx))
         block[:, :d] = C @ Z
-        if slack:
+        if slack and r:
             block[:, d:] = -np.eye(r)
         shift = C @ x_p
         C_list.append(block)
@@ -517,6 +742,8 @@ def _nullspace_level(
     )
     sol = solver.solve(problem)
     if not sol.success or sol.x is None:
+        return sol, None
+    if hard_own and not _own_multipliers_vanish(sol, r_own):
         return sol, None
     return sol, x_p + Z @ sol.x[:d]
 
