@@ -4,17 +4,26 @@ Variables x = (q̈ (n), f (6c)); the torque is eliminated through the actuated r
 dynamics (eq. 6–7), Γ = M_a q̈ + h_a − J_c,aᵀ f. Priorities (Table 1):
 
 1. ``dynamics``: the floating-base rows M_u q̈ + h_u − J_c,uᵀ f = 0 (6 eq) and the torque limits
-   −Γ_max ≤ Γ ≤ Γ_max (2k ineq);
+   −Γ_max ≤ Γ ≤ Γ_max (2k ineq). This priority is always feasible (any torque within its limits,
+   Γ = 0 say, is realised by some base acceleration with any wrench), so its optimal slacks are
+   zero and its optimal set is its feasible set: it is held as hard constraints, which is the
+   same solution without a QP of its own;
 2. ``contacts``: stationary contacts J_c q̈ + J̇_c q̇ = 0 (6c eq), the contact-wrench inequalities
    (CoP, friction pyramid, yaw, normal force) and the joint-acceleration limits (2k ineq);
 3. … the scenario's tasks, one level per distinct ``priority`` (priority 1 = Table 1's level 3:
    CoM position and pelvis orientation; priority 2 = level 4: end-effector poses);
 
-then the acceleration energy ½ q̈ᵀ M q̈ (eq. 27) as the final objective, with a small
-‖f‖² term so that double-support wrenches are unique. Every level is a soft LQP level (eq. 26):
-minimal slacks, held by the levels below. Solved by the sequential method (``nullspace``), a
-cascade of full QPs (``cascade``) or one weighted QP (``weighted``), see
-:mod:`wbcbench.qp.hierarchy`.
+and the acceleration energy ½ q̈ᵀ M q̈ (eq. 27), with a small ‖f‖² term so that double-support
+wrenches are unique, in the cost of the last level (eq. 28 puts it in the LQP's cost; it is not a
+priority of Table 1), weighted ``final_weight`` against that level's slacks. Every level is a
+soft LQP level (eq. 26): minimal slacks, held by the levels below. Two exact shortcuts of
+:mod:`wbcbench.qp.hierarchy` save QPs: the contacts level is held hard inside the first task
+level's QP when that QP is feasible (its slacks are then zero), and a level with inequalities is
+first solved with them hard, with slacks only when that is infeasible or a multiplier of its
+inequalities is non-zero. In the usual state the sequential method solves one QP per task
+priority. Solved by
+the sequential method (``nullspace``), a cascade of full QPs (``cascade``) or one weighted QP
+(``weighted``).
 
 f is the reaction on the robot (see :mod:`wbcbench.dynamics.state`): the paper's F_c is −f.
 """
@@ -62,12 +71,15 @@ class LqpConfig(ControllerConfig):
         1e-4, gt=0, description="weight of ‖f‖² next to q̈ᵀ M q̈ in the final objective"
     )
     weights: list[float] = Field(
-        [1e6, 1e4, 1e2, 1.0],
-        description="weighted strategy only: weight per level (dynamics, contacts, task "
-        "priorities 1, 2, …; the last one repeats)",
+        [1e4, 1e2, 1.0],
+        description="weighted strategy only: weight per level (contacts, task priorities 1, "
+        "2, …; the last one repeats; the dynamics are hard constraints)",
     )
     final_weight: float = Field(
-        1e-4, gt=0, description="weighted strategy only: weight of the final objective"
+        1e-4,
+        gt=0,
+        description="weight of the acceleration energy next to the last level's slacks "
+        "(sequential strategies: in the last level's QP; weighted: next to the level weights)",
     )
 
 
@@ -97,7 +109,8 @@ def level_weight(weights: list[float], i: int) -> float:
 
 
 class SolverPool:
-    """One solver handle per hierarchy level, created on first use and kept across ticks."""
+    """Solver handles for the QPs of one hierarchy, created on first use and kept across ticks
+    (hot solvers keep one problem structure each)."""
 
     def __init__(self, ctx: ControllerContext) -> None:
         self.ctx = ctx
@@ -116,19 +129,6 @@ def slack_diagnostics(result: HierarchyResult, prefix: str = "") -> dict[str, fl
         out[f"{prefix}w.{lv.name}"] = float(np.linalg.norm(lv.w)) if lv.w.size else 0.0
         out[f"{prefix}v.{lv.name}"] = float(np.linalg.norm(lv.v)) if lv.v.size else 0.0
     return out
-
-
-def accept_final_failure(result: HierarchyResult, n_levels: int) -> bool:
-    """Keep the last priority level's optimum when only the final objective's QP failed.
-
-    The final level only picks one point in the set every priority already fixed; a backend
-    that fails on that (degenerate) QP leaves a valid, merely non-minimal-energy, solution.
-    Marks the result ok and returns True when it did so.
-    """
-    if result.ok or len(result.levels) != n_levels:
-        return False
-    result.ok = True
-    return True
 
 
 def failed_output(
@@ -184,8 +184,9 @@ class Lqp(Controller):
 
     def hierarchy(
         self, state: RobotState, terms: list[TaskTerm]
-    ) -> tuple[list[PriorityLevel], Objective, np.ndarray, np.ndarray]:
-        """The levels and final objective over x = (q̈, f), and the torque map Γ = G x + γ."""
+    ) -> tuple[Constraints, list[PriorityLevel], Objective, np.ndarray, np.ndarray]:
+        """Priority 1 (hard), the levels and the energy over x = (q̈, f), and the torque map
+        Γ = G x + γ."""
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc
         nx = n + nc
@@ -195,8 +196,8 @@ class Lqp(Controller):
         tau_max = self.ctx.tau_max
         G = np.hstack([M[6:], -Jc[:, 6:].T])
         gamma = h[6:]
-        dyn = PriorityLevel(
-            "dynamics",
+        dyn = Constraints(
+            nx,
             A=np.hstack([M[:6], -Jc[:, :6].T]),
             b=-h[:6],
             C=G,
@@ -215,8 +216,9 @@ class Lqp(Controller):
             C=C2,
             l=np.concatenate([self.lw, -qdd_max]),
             u=np.concatenate([self.uw, qdd_max]),
+            hard_if_feasible=True,
         )
-        levels = [dyn, contacts]
+        levels = [contacts]
         for p, group in task_levels(terms):
             J = np.vstack([t.J for t in group])
             r = np.concatenate([t.acc_ref - t.drift for t in group])
@@ -225,24 +227,25 @@ class Lqp(Controller):
             lv.weight = level_weight(cfg.weights, i)
         final = energy_objective("energy", M, nc, cfg.wrench_regularization)
         final.weight = cfg.final_weight
-        return levels, final, G, gamma
+        return dyn, levels, final, G, gamma
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         timer = StageTimer(state)
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc
         terms = self.evaluate_tasks(state, t)
-        levels, final, G, gamma = self.hierarchy(state, terms)
+        hard, levels, final, G, gamma = self.hierarchy(state, terms)
         result = solve_hierarchy(
-            Constraints(n + nc),
+            hard,
             levels,
             [final],
             cfg.strategy,
-            self.pool.get(len(levels) + 1),
+            self.pool.get(2 * (len(levels) + 1)),
             timer,
+            merge_finals=True,
+            slack_free_first=True,
         )
         self.last = result
-        fallback = accept_final_failure(result, len(levels))
         if not result.ok:
             msg = result.message
             return failed_output(n, k, nc, terms, timer.finish(), msg, self.last_output)
@@ -255,6 +258,6 @@ class Lqp(Controller):
             terms=terms,
             timings=timer.finish(),
             iterations=timer.iterations,
-            diagnostics={**slack_diagnostics(result), "final_fallback": float(fallback)},
+            diagnostics=slack_diagnostics(result),
         )
         return self.last_output

@@ -85,6 +85,8 @@ class ReducedModel:
         Jbar_r: dynamically consistent inverse M⁻¹ J_rᵀ M_r (n, n_r).
         J_cr: reduced contact Jacobian (6c, n_r) (eq. 15).
         chains: centroidal quantities per chain.
+        J_G: block-diagonal J_G of every chain (6·n_chains, n_uc).
+        dJG_v: stacked J̇_G q̇ of every chain (6·n_chains,).
         M_uc: fixed-base inertia of the chains' joints (n_uc, n_uc) (eq. 17).
         b_uc, g_uc: fixed-base Coriolis/centrifugal and gravity (n_uc,) [N·m]; NaN when the
             fixed-base pass was not requested.
@@ -101,6 +103,8 @@ class ReducedModel:
     Jbar_r: np.ndarray
     J_cr: np.ndarray
     chains: list[ChainCentroid]
+    J_G: np.ndarray
+    dJG_v: np.ndarray
     M_uc: np.ndarray
     b_uc: np.ndarray
     g_uc: np.ndarray
@@ -109,18 +113,6 @@ class ReducedModel:
     @property
     def n_plain(self) -> int:
         return int(self.split.plain.size)
-
-    @property
-    def J_G(self) -> np.ndarray:
-        """Block-diagonal J_G of every chain (6·n_chains, n_uc)."""
-        return scipy.linalg.block_diag(*[c.J_G for c in self.chains])
-
-    @property
-    def dJG_v(self) -> np.ndarray:
-        """Stacked J̇_G q̇ of every chain (6·n_chains,)."""
-        if not self.chains:
-            return np.zeros(0)
-        return np.concatenate([c.drift for c in self.chains])
 
     def task(self, J: np.ndarray, drift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A task J q̈ + J̇ q̇ in the reduced space (eq. 22): (J J̄_r (m, n_r), drift (m,)).
@@ -157,6 +149,10 @@ class ReducedDynamics:
         self._uc = split.unconstrained
         self._v_rel = np.zeros(n)
         self._zero = np.zeros(n)
+        self._eye_r = np.eye(n_r)
+        # column offset of each chain in q̈_uc (chains are stacked chain after chain)
+        sizes = [c.dof for c in split.chains]
+        self._uc_cols = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
 
     def compute(self, state: RobotState, fixed_base: bool = True) -> ReducedModel:
         """Reduced model at ``state``; ``fixed_base`` adds eq. (17)'s b_uc (one more RNEA)."""
@@ -177,6 +173,8 @@ class ReducedDynamics:
         J_r = self._J_r
         dJr_v = np.zeros(split.n_reduced)
         chains: list[ChainCentroid] = []
+        n_ch = len(split.chains)
+        J_G_all = np.zeros((CENTROID_DIM * n_ch, self._uc.size))
         for i, chain in enumerate(split.chains):
             Y = oYcrb[chain.root_joints[0]]
             for r in chain.root_joints[1:]:
@@ -204,13 +202,15 @@ class ReducedDynamics:
             rows = slice(n_p + CENTROID_DIM * i, n_p + CENTROID_DIM * (i + 1))
             J_r[rows, chain.idx] = J_G
             dJr_v[rows] = drift
+            cols = slice(self._uc_cols[i], self._uc_cols[i + 1])
+            J_G_all[CENTROID_DIM * i : CENTROID_DIM * (i + 1), cols] = J_G
             chains.append(ChainCentroid(A_G, I_G, J_G, drift, m, c, R.copy()))
 
         Minv, h, g = state.Minv, state.h, state.g
         JMinv = J_r @ Minv  # (n_r, n)
         Lambda_inv = JMinv @ J_r.T
         cho = scipy.linalg.cho_factor(Lambda_inv, lower=True, check_finite=False)
-        M_r = scipy.linalg.cho_solve(cho, np.eye(split.n_reduced), check_finite=False)
+        M_r = scipy.linalg.cho_solve(cho, self._eye_r, check_finite=False)
         M_r = 0.5 * (M_r + M_r.T)
         proj = M_r @ (JMinv @ np.column_stack([h - g, g]))
         b_r = proj[:, 0] - M_r @ dJr_v
@@ -239,6 +239,8 @@ class ReducedDynamics:
             Jbar_r=Jbar_r,
             J_cr=J_cr,
             chains=chains,
+            J_G=J_G_all,
+            dJG_v=dJr_v[n_p:].copy(),
             M_uc=M_uc,
             b_uc=b_uc,
             g_uc=g_uc,
