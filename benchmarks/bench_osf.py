@@ -1,0 +1,179 @@
+"""OSF timing: OSF-HQP Table III, TO-OSF Scenario #4, COD vs SVD, TO-OSF Table 3.
+
+Protocol (DESIGN §7): every controller steps through the SAME recorded states (open-loop replay)
+with the same backend (daqp, the fastest here), one BLAS thread, the first ticks discarded;
+medians per stage. ``python benchmarks/bench_osf.py`` prints the tables with the papers' numbers
+beside ours; ``make bench-micro`` runs the pytest-benchmark entries.
+
+* Table III (``lee2021iros_table1``, TOCABI-like, 5 levels): osf_hqp per level and total QP time,
+  its parameter time and full step, against the conventional cascade hqp (finals: wrench).
+* Scenario #4 (``lee2021access_s4_cost``): to_osf QP time and parameter time against 1…4 contact
+  planes and 1…5 tasks.
+* COD vs SVD: parameter time of the dynamically consistent inverse, 5 tasks, two feet.
+* Table 3 (``lee2021access_table3``): hqp vs to_osf step time for 1…5 tasks, double support.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import pytest
+import scipy.linalg  # noqa: F401  (its BLAS must be loaded before threads are limited)
+from threadpoolctl import threadpool_limits
+
+from wbcbench.scenarios.load import LoadedScenario, load_scenario
+from wbcbench.scenarios.schema import ContactSpec, CopBox
+from wbcbench.sim.closed_loop import RunSettings
+from wbcbench.sim.replay import Recording, record_states, replay
+
+threadpool_limits(1)
+WARMUP = 50
+SOLVER = "daqp"
+
+
+@functools.cache
+def recording(scenario: str, t0: float, t1: float) -> tuple[LoadedScenario, Recording]:
+    """States of a closed-loop osf_hqp run of ``scenario`` kept for t0 ≤ t < t1."""
+    loaded = load_scenario(scenario, (f"duration={t1}",))
+    rec = record_states(loaded, RunSettings(controller="osf_hqp", solver=SOLVER))
+    keep = (rec.t >= t0) & (rec.t < t1)
+    return loaded, Recording(rec.scenario, rec.t[keep], rec.q[keep], rec.v[keep])
+
+
+def medians(
+    loaded: LoadedScenario, rec: Recording, controller: str, config: dict[str, Any]
+) -> dict[str, float]:
+    """Median [µs] of every stage the controller reports, over the recording."""
+    settings = RunSettings(controller=controller, solver=SOLVER, controller_config=config)
+    timings = replay(loaded, rec, settings)
+    out = {stage: timings.median_us(stage, WARMUP) for stage in timings.stages}
+    out["failures"] = float(timings.failures)
+    return out
+
+
+def table3_iros() -> dict[str, dict[str, float]]:
+    loaded, rec = recording("lee2021iros_table1", 3.0, 4.0)
+    return {
+        "osf_hqp_cod": medians(loaded, rec, "osf_hqp", {"params": "inline"}),
+        "osf_hqp_svd": medians(loaded, rec, "osf_hqp", {"params": "inline", "inverse": "svd"}),
+        "hqp": medians(loaded, rec, "hqp", {"finals": ["wrench"]}),
+    }
+
+
+def subset(
+    loaded: LoadedScenario, n_tasks: int, contacts: list[ContactSpec] | None = None
+) -> LoadedScenario:
+    """The scenario with its first ``n_tasks`` tasks (and other contacts when given)."""
+    spec = loaded.spec
+    update: dict[str, Any] = {"tasks": spec.tasks[:n_tasks]}
+    if contacts is not None:
+        update["contacts"] = contacts
+    return LoadedScenario(spec.model_copy(update=update), loaded.path, loaded.overrides)
+
+
+def scenario4() -> dict[str, list[dict[str, float]]]:
+    loaded, rec = recording("lee2021access_s4_cost", 0.5, 1.0)
+    fourth = ContactSpec(
+        frame="r_hand", mu=0.5, fmin=30, cop=CopBox(x=(-0.02, 0.02), y=(-0.02, 0.02))
+    )
+    planes = [*loaded.spec.contacts, fourth]
+    cfg = {"params": "inline", "weights": [1e7], "wrench_weights": [1, 1, 0, 1, 1, 1]}
+    by_contacts = [
+        {"planes": n, **medians(subset(loaded, 5, planes[:n]), rec, "to_osf", cfg)}
+        for n in range(1, 5)
+    ]
+    by_tasks = [{"tasks": n, **medians(subset(loaded, n), rec, "to_osf", cfg)} for n in range(1, 6)]
+    return {"contacts": by_contacts, "tasks": by_tasks}
+
+
+def table3_access() -> list[dict[str, float]]:
+    loaded, rec = recording("lee2021access_table3", 0.2, 0.7)
+    rows = []
+    for n in range(1, 6):
+        sub = subset(loaded, n)
+        osf = medians(sub, rec, "to_osf", {"params": "inline"})
+        rows.append(
+            {
+                "tasks": n,
+                "dofs": sum(len(t.selected_axes) for t in sub.spec.tasks),
+                "hqp": medians(sub, rec, "hqp", {"finals": ["torque"]})["total"],
+                "to_osf": osf["total"],
+                "to_osf_rt": osf["total"] - osf["params"],
+            }
+        )
+    return rows
+
+
+# -- pytest-benchmark entries -----------------------------------------------------------------
+
+
+@pytest.mark.parametrize("entry", ["table3_iros", "table3_access"])
+def test_osf_tables(benchmark, entry: str) -> None:
+    fn = {"table3_iros": table3_iros, "table3_access": table3_access}[entry]
+    result = benchmark.pedantic(fn, rounds=1, iterations=1)
+    if isinstance(result, dict):
+        for name, stages in result.items():
+            benchmark.extra_info.update({f"{name}.{k}_us": v for k, v in stages.items()})
+            assert stages["failures"] == 0
+    else:
+        benchmark.extra_info["rows"] = result
+
+
+# -- tables ------------------------------------------------------------------------------------
+
+PAPER_T3 = {"T1": 0.059, "T2": 0.068, "T3": 0.041, "T4": 0.099, "wrench": 0.038}
+PAPER_CONV = {"T1": 1.416, "T2": 1.764, "T3": 1.380, "T4": 3.176, "wrench": 1.527}
+
+
+def main() -> None:
+    t = table3_iros()
+    o, s, h = t["osf_hqp_cod"], t["osf_hqp_svd"], t["hqp"]
+    print("OSF-HQP Table III (TOCABI-like, same recorded states, daqp) — median [µs]")
+    print(f"{'level':<8} {'hqp':>9} {'osf_hqp':>9} {'ratio':>7}   paper conv / proposed [ms]")
+    for lv in ("T1", "T2", "T3", "T4", "wrench"):
+        hk = "solve.wrench" if lv == "wrench" else f"solve.L{lv[1:]}"
+        hv = h.get(hk, h.get(f"solve.{lv}", float("nan")))
+        ov = o.get(f"solve.{lv}", float("nan"))
+        paper = f"{PAPER_CONV[lv]:.3f} / {PAPER_T3[lv]:.3f}"
+        print(f"{lv:<8} {hv:9.1f} {ov:9.1f} {hv / ov:7.1f}   {paper}")
+    print(
+        f"{'QP sum':<8} {h['solve']:9.1f} {o['solve']:9.1f} {h['solve'] / o['solve']:7.1f}"
+        "   9.263 / 0.303 (30.5x)"
+    )
+    print(
+        f"osf_hqp params (cod) {o['params']:.1f} µs, dynamics {o['dynamics']:.1f} µs; paper 0.64 ms"
+    )
+    print(
+        f"full step: hqp {h['total']:.1f} µs, osf_hqp {o['total']:.1f} µs, ratio "
+        f"{h['total'] / o['total']:.1f} (paper 9.8x, osf 0.94 ms)"
+    )
+    print(
+        f"COD vs SVD parameter time: {o['params']:.1f} vs {s['params']:.1f} µs"
+        " (paper 1.55 vs 4.27 ms)"
+    )
+    print(f"failures: hqp {h['failures']:.0f}, osf_hqp {o['failures']:.0f}")
+    print()
+    s4 = scenario4()
+    print("TO-OSF Scenario #4 — to_osf median [µs]: RT part (total − params) and params")
+    for row in s4["contacts"]:
+        print(
+            f"  {row['planes']} planes: RT {row['total'] - row['params']:8.1f}"
+            f"  QP {row['solve']:7.1f}  params {row['params']:7.1f}"
+        )
+    for row in s4["tasks"]:
+        print(
+            f"  {row['tasks']} tasks : RT {row['total'] - row['params']:8.1f}"
+            f"  QP {row['solve']:7.1f}  params {row['params']:7.1f}"
+        )
+    print()
+    print("TO-OSF Table 3 — step time [µs], double support, home posture")
+    for row in table3_access():
+        print(
+            f"  {row['tasks']} tasks ({row['dofs']:2d} DoF): hqp {row['hqp']:8.1f}"
+            f"  to_osf {row['to_osf']:8.1f}  (RT part {row['to_osf_rt']:7.1f})"
+        )
+
+
+if __name__ == "__main__":
+    main()
