@@ -1,0 +1,183 @@
+"""RC-LQP paper Table 3 and Fig. 5: conventional LQP (``lqp``) against the reduced-centroidal
+LQP (``rc_lqp``) on the same recorded states.
+
+Protocol (DESIGN.md §7): each scenario is run once in closed loop (``lqp``, quadprog) and its
+states recorded; every controller × backend then replays the same 350 states from t = 1 s (the
+motions run), solver handles hot, one thread, the first 50 ticks discarded. Columns as the
+paper's Table 3: total mean ("avg") and max, the reduced-dynamics calculation ("dyn calc": the
+``reduced`` stage, Pinocchio quantities first requested there included), LQP 1 and LQP 2
+(formulation + solve of each), and the median with the ratio rc_lqp / lqp beside the paper's.
+The DoF series (Fig. 5) replays ``scenarios/ahn_dof_scaling.yaml`` with ``robot`` overridden
+per member of the TOCABI-like family.
+
+Run with ``make bench-micro`` (pytest-benchmark cases) or ``python benchmarks/bench_rc_lqp.py``
+for the tables (OSQP, the paper's solver, and the fastest installed backend).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from wbcbench.qp import available_solvers
+from wbcbench.scenarios.load import LoadedScenario, load_scenario
+from wbcbench.sim.closed_loop import RunSettings
+from wbcbench.sim.replay import Recording, ReplayTimings, record_states, replay
+
+WARMUP = 50
+TICKS = 350
+START = 1.0  # [s]: the CoM and hand motions start here
+CONTROLLERS = ("lqp", "rc_lqp")
+TABLE3 = {"double": "ahn_double_support", "single": "ahn_single_support"}
+DOFS = (20, 25, 29, 33, 39, 45)
+#: RC-LQP Table 3 [µs]: (conventional avg, max), (proposed avg, max, dyn calc, LQP 1, LQP 2)
+PAPER_TABLE3 = {
+    "double": ((2176, 2473), (981, 1203, 34, 579, 273)),
+    "single": ((1834, 2119), (613, 811, 36, 243, 270)),
+}
+#: RC-LQP Fig. 5 / §5.3 [µs]: DoF → (conventional, proposed), the two values the text gives
+PAPER_DOF = {20: (754, 571), 45: (4081, 1319)}
+CANDIDATES = ("quadprog", "daqp", "proxqp", "osqp", "piqp", "clarabel", "highs", "qpoases")
+SOLVERS = [s for s in CANDIDATES if s in available_solvers()]
+
+
+def dof_robot(dof: int) -> str:
+    return "tocabi_like" if dof == 33 else f"tocabi_dof{dof}"
+
+
+@functools.cache
+def recording(scenario: str, robot: str = "") -> tuple[LoadedScenario, Recording]:
+    """The scenario (robot overridden when given) and TICKS recorded states from START on."""
+    overrides = [f"duration={START + (TICKS + 10) / 1000:.3f}"]
+    if robot:
+        overrides.append(f"robot={robot}")
+    loaded = load_scenario(scenario, tuple(overrides))
+    rec = record_states(loaded, RunSettings(controller="lqp", solver="quadprog"))
+    return loaded, rec.window(START, TICKS)
+
+
+def run(scenario: str, controller: str, solver: str, robot: str = "") -> ReplayTimings:
+    loaded, rec = recording(scenario, robot)
+    settings = RunSettings(controller=controller, solver=solver, mode="hot")
+    return replay(loaded, rec, settings)
+
+
+def columns(t: ReplayTimings) -> dict[str, float]:
+    """Table 3's columns [µs] (NaN where the controller has no such stage) and the failures."""
+
+    def stat(stage: str, fn: object) -> float:
+        if stage not in t.stages:
+            return float("nan")
+        x = t.stages[stage][WARMUP:]
+        x = x[np.isfinite(x)]
+        return float(fn(x) * 1e6) if x.size else float("nan")  # type: ignore[operator]
+
+    return {
+        "avg": stat("total", np.mean),
+        "max": stat("total", np.max),
+        "median": stat("total", np.median),
+        "dyn": stat("reduced", np.mean),
+        "lqp1": stat("lqp1", np.mean),
+        "lqp2": stat("lqp2", np.mean),
+        "solve": stat("solve", np.mean),
+        "failures": float(t.failures),
+    }
+
+
+# -- pytest-benchmark cases -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.parametrize("support", list(TABLE3))
+def test_table3(benchmark, support: str, controller: str, solver: str) -> None:
+    t = benchmark.pedantic(run, args=(TABLE3[support], controller, solver), rounds=1)
+    cols = columns(t)
+    benchmark.extra_info.update({f"{k}_us": v for k, v in cols.items() if k != "failures"})
+    assert t.failures == 0, t.message
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.parametrize("dof", DOFS)
+def test_dof_scaling(benchmark, dof: int, controller: str) -> None:
+    args = ("ahn_dof_scaling", controller, "quadprog", dof_robot(dof))
+    t = benchmark.pedantic(run, args=args, rounds=1)
+    benchmark.extra_info.update({f"{k}_us": v for k, v in columns(t).items()})
+    assert t.failures == 0, t.message
+
+
+# -- tables -----------------------------------------------------------------------------------
+
+
+def fastest_solver() -> str:
+    """The backend with the smallest rc_lqp median on the double-support states."""
+    medians = {}
+    for solver in SOLVERS:
+        t = run(TABLE3["double"], "rc_lqp", solver)
+        if t.failures == 0:
+            medians[solver] = columns(t)["median"]
+    return min(medians, key=medians.__getitem__)
+
+
+def table3(solver: str) -> None:
+    print(f"\nTable 3 — {solver}, hot, {TICKS - WARMUP} recorded states [µs] (paper: OSQP, C++)")
+    head = (
+        f"{'support':<7} {'method':<13} {'avg':>6} {'max':>6} {'median':>7} {'dyn':>5} "
+        f"{'LQP1':>6} {'LQP2':>6} {'fail':>4} | {'paper avg':>9} {'max':>5} {'dyn':>4} "
+        f"{'LQP1':>5} {'LQP2':>5}"
+    )
+    print(head)
+    for support, scenario in TABLE3.items():
+        res = {c: columns(run(scenario, c, solver)) for c in CONTROLLERS}
+        (p_avg, p_max), proposed = PAPER_TABLE3[support]
+        papers = {"lqp": (p_avg, p_max, "", "", ""), "rc_lqp": proposed}
+        for c, label in (("lqp", "conventional"), ("rc_lqp", "proposed")):
+            r = res[c]
+            paper = " ".join(f"{v:>{w}}" for v, w in zip(papers[c], (9, 5, 4, 5, 5), strict=True))
+            print(
+                f"{support:<7} {label:<13} {r['avg']:6.0f} {r['max']:6.0f} {r['median']:7.0f} "
+                f"{r['dyn']:5.0f} {r['lqp1']:6.0f} {r['lqp2']:6.0f} {int(r['failures']):4d} | "
+                f"{paper}"
+            )
+        ratio = res["rc_lqp"]["median"] / res["lqp"]["median"]
+        ratio_avg = res["rc_lqp"]["avg"] / res["lqp"]["avg"]
+        paper_ratio = proposed[0] / p_avg
+        print(
+            f"{support:<7} rc_lqp / lqp: median {ratio:.2f}, avg {ratio_avg:.2f} "
+            f"(paper {paper_ratio:.2f})"
+        )
+
+
+def dof_series(solver: str) -> None:
+    print(f"\nDoF scaling (Fig. 5), double support — {solver}, hot, median [µs]")
+    print(
+        f"{'DoF':>4} {'n_uc':>5} {'lqp':>7} {'rc_lqp':>7} {'ratio':>6} | {'paper':>12} {'ratio':>6}"
+    )
+    for dof in DOFS:
+        res = {c: columns(run("ahn_dof_scaling", c, solver, dof_robot(dof))) for c in CONTROLLERS}
+        lqp, rc = res["lqp"]["median"], res["rc_lqp"]["median"]
+        paper = PAPER_DOF.get(dof)
+        p_txt = f"{paper[0]:>5} / {paper[1]:>4}" if paper else ""
+        p_ratio = f"{paper[1] / paper[0]:6.2f}" if paper else ""
+        print(
+            f"{dof:>4} {dof - 12:>5} {lqp:7.0f} {rc:7.0f} {rc / lqp:6.2f} | {p_txt:>12} {p_ratio}"
+        )
+
+
+def main() -> None:
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+    fastest = fastest_solver()
+    for solver in dict.fromkeys(["osqp", fastest]):
+        if solver in SOLVERS:
+            table3(solver)
+    for solver in dict.fromkeys(["osqp", fastest]):
+        if solver in SOLVERS:
+            dof_series(solver)
+
+
+if __name__ == "__main__":
+    main()
