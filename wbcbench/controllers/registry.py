@@ -12,8 +12,8 @@ from wbcbench.controllers.kin_hqp import KinHqp
 from wbcbench.controllers.lqp import Lqp
 from wbcbench.controllers.osf_hqp import OsfHqp
 from wbcbench.controllers.qp_wbc import QpWbc
-from wbcbench.controllers.to_osf import ToOsf
 from wbcbench.controllers.rc_lqp import RcLqp
+from wbcbench.controllers.to_osf import ToOsf
 from wbcbench.errors import UnknownNameError
 
 CONTROLLERS: dict[str, type[Controller]] = {
