@@ -231,11 +231,15 @@ def dump_problems(
     n = after + ticks
     rec = Recording(rec.scenario, rec.t[:n], rec.q[:n], rec.v[:n])
     saved: list[Path] = []
+    # every QP the controller hands to a solver handle, whatever the controller
+    pairs: list[tuple[Problem, Solution]] = []
 
     def keep(i: int, out: Any) -> str:
+        captured = [problem for problem, _ in pairs]
+        pairs.clear()
         if i < after:
             return ""
-        for k, problem in enumerate(out.problems):
+        for k, problem in enumerate(captured):
             problem.meta = {
                 **problem.meta,
                 "scenario": loaded.name,
@@ -250,7 +254,7 @@ def dump_problems(
         return ""
 
     settings = RunSettings(controller=controller, solver=default_solver(), mode="hot")
-    replay(loaded, rec, settings, keep_problems=True, on_step=keep)
+    replay(loaded, rec, settings, on_step=keep, wrap_solver=lambda handle: _Capture(handle, pairs))
     (target / "done").write_text(json.dumps({"files": len(saved)}) + "\n")
     return saved
 
