@@ -47,10 +47,6 @@ from wbcbench.dynamics.chains import CENTROID_DIM, ChainSplit
 from wbcbench.dynamics.state import RobotState
 
 
-def _skew(p: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
-
-
 @dataclass
 class ChainCentroid:
     """Centroidal quantities of one unconstrained chain, in its parent body's axes.
@@ -181,14 +177,6 @@ class ReducedDynamics:
                 Y = Y + oYcrb[r]
             m, c, Ic = float(Y.mass), np.array(Y.lever), np.array(Y.inertia)
             R = oMi[chain.parent_joint].rotation
-            shift = _skew(com - c)  # k about c = k about the total CoM + (C − c) × l
-            A = cmm[:, chain.idx]
-            A_G = np.vstack([R.T @ A[:3], R.T @ (A[3:] + shift @ A[:3])])
-            Ic_l = R.T @ Ic @ R
-            I_G = np.zeros((6, 6))
-            I_G[:3, :3] = m * np.eye(3)
-            I_G[3:, 3:] = Ic_l
-            J_G = np.vstack([A_G[:3] / m, np.linalg.solve(Ic_l, A_G[3:])])
             # rate of relative momentum at zero q̈ (only the chains move, so the whole robot's
             # is the chains'; with one chain it is this chain's)
             if len(split.chains) > 1:
@@ -196,9 +184,23 @@ class ReducedDynamics:
                 v_rel[chain.idx] = state.v[chain.idx]
                 pin.computeCentroidalMomentumTimeVariation(model, data, state.q, v_rel, self._zero)
                 dh_lin, dh_ang = data.dhg.linear, data.dhg.angular
-            dl = R.T @ dh_lin
-            dk = R.T @ (dh_ang + shift @ dh_lin)
-            drift = np.concatenate([dl / m, np.linalg.solve(Ic_l, dk)])
+            # [A_G | J̇_G-momentum] in one block: columns of the chain's joints, then the drift
+            X = np.empty((6, chain.dof + 1))
+            X[:, :-1] = cmm[:, chain.idx]
+            X[:3, -1] = dh_lin
+            X[3:, -1] = dh_ang
+            # k about c = k about the total CoM + (C − c) × l
+            X[3:] += np.cross(com - c, X[:3], axis=0)
+            X[:3] = R.T @ X[:3]
+            X[3:] = R.T @ X[3:]
+            Ic_l = R.T @ Ic @ R
+            Y6 = np.empty_like(X)
+            Y6[:3] = X[:3] / m
+            Y6[3:] = np.linalg.solve(Ic_l, X[3:])
+            A_G, J_G, drift = X[:, :-1], Y6[:, :-1], Y6[:, -1]
+            I_G = np.zeros((6, 6))
+            I_G[:3, :3] = m * np.eye(3)
+            I_G[3:, 3:] = Ic_l
             rows = slice(n_p + CENTROID_DIM * i, n_p + CENTROID_DIM * (i + 1))
             J_r[rows, chain.idx] = J_G
             dJr_v[rows] = drift
