@@ -70,6 +70,12 @@ class LqpConfig(ControllerConfig):
     wrench_regularization: float = Field(
         1e-4, gt=0, description="weight of ‖f‖² next to q̈ᵀ M q̈ in the final objective"
     )
+    prox: float = Field(
+        1e-8,
+        ge=0,
+        description="proximal weight of the retry of a level the backend failed to solve (a "
+        "level's QP is only semidefinite; see wbcbench.qp.hierarchy); 0 = no retry",
+    )
     weights: list[float] = Field(
         [1e4, 1e2, 1.0],
         description="weighted strategy only: weight per level (contacts, task priorities 1, "
@@ -242,6 +248,7 @@ class Lqp(Controller):
             cfg.strategy,
             self.pool.get(2 * (len(levels) + 1)),
             timer,
+            prox=cfg.prox,
             merge_finals=True,
             slack_free_first=True,
         )
@@ -258,6 +265,6 @@ class Lqp(Controller):
             terms=terms,
             timings=timer.finish(),
             iterations=timer.iterations,
-            diagnostics=slack_diagnostics(result),
+            diagnostics={**slack_diagnostics(result), "prox_retries": float(result.retries)},
         )
         return self.last_output

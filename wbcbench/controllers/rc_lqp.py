@@ -129,6 +129,12 @@ class RcLqpConfig(ControllerConfig):
     )
     qdd_limit: float = Field(300.0, gt=0, description="joint-acceleration limit [rad/s²]")
     wrench_regularization: float = Field(1e-4, gt=0, description="weight of ‖f‖² in LQP 1")
+    prox: float = Field(
+        1e-8,
+        ge=0,
+        description="proximal weight of the retry of a level the backend failed to solve (a "
+        "level's QP is only semidefinite; see wbcbench.qp.hierarchy); 0 = no retry",
+    )
     weights: list[float] = Field(
         [1e4, 1e2, 1.0],
         description="weighted strategy only: weight per level of each LQP (last one repeats; "
@@ -150,7 +156,7 @@ def _solve(
     hard: Constraints,
     levels: list[PriorityLevel],
     final: Objective,
-    strategy: str,
+    cfg: RcLqpConfig,
     pool: SolverPool,
     timer: StageTimer,
 ) -> HierarchyResult:
@@ -160,9 +166,10 @@ def _solve(
         hard,
         levels,
         [final],
-        strategy,
+        cfg.strategy,
         handles,
         timer,
+        prox=cfg.prox,
         merge_finals=True,
         slack_free_first=True,
     )
@@ -294,7 +301,7 @@ class RcLqp(Controller):
             d[self.centroid_rows] = preview
             final = Objective(final.name, final.F, final.F @ d)
         final.weight = cfg.final_weight
-        return _solve(hard, levels, final, cfg.strategy, pool, timer)
+        return _solve(hard, levels, final, cfg, pool, timer)
 
     # -- LQP 2 ----------------------------------------------------------------------------------
 
@@ -377,7 +384,7 @@ class RcLqp(Controller):
             final = Objective(final.name, final.F, f)
         final.weight = cfg.final_weight
         n_uc = red.M_uc.shape[0]
-        return _solve(Constraints(n_uc), levels, final, cfg.strategy, pool, timer)
+        return _solve(Constraints(n_uc), levels, final, cfg, pool, timer)
 
     def preview(self, state: RobotState, red: ReducedModel, terms: list[TaskTerm]) -> np.ndarray:
         """Centroidal accelerations (6·n_chains,) of the minimum-M_uc-energy chain motion that
@@ -494,6 +501,7 @@ class RcLqp(Controller):
         if res2 is not None:
             diag.update(slack_diagnostics(res2))
         diag.update(extra)
+        diag["prox_retries"] = float(res1.retries + (res2.retries if res2 is not None else 0))
         if cfg.coupling_priority:
             # keys of the re-solve exist on every tick, so per-tick logs stay rectangular
             for key in ("w.lqp1.coupling", "v.lqp1.coupling", "w.lqp2.limits", "v.lqp2.limits"):
