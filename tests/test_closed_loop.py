@@ -113,3 +113,16 @@ def test_run_command_writes_tables_and_resumes(tmp_path: Path, capsys) -> None:
     assert main(args) == 0
     assert "skipped" in capsys.readouterr().out
     assert len(pd.read_csv(out / "runs.csv")) == 2
+
+
+def test_run_log_pads_columns_a_tick_does_not_report() -> None:
+    from wbcbench.sim.closed_loop import RunLog
+
+    log = RunLog()
+    log.add({"t": 0.0, "diag.a": 1.0})
+    log.add({"t": 0.001})
+    log.add({"t": 0.002, "diag.b": 2.0})
+    arrays = log.arrays()
+    assert {k: len(v) for k, v in arrays.items()} == {"t": 3, "diag.a": 3, "diag.b": 3}
+    np.testing.assert_array_equal(arrays["diag.a"], [1.0, np.nan, np.nan])
+    np.testing.assert_array_equal(arrays["diag.b"], [np.nan, np.nan, 2.0])

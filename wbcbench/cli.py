@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
+import scipy.linalg  # noqa: F401 - loads SciPy's own BLAS so that the thread limit reaches it
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 

@@ -15,7 +15,8 @@ above held. Final regularisation levels resolve the remaining redundancy:
   the contact-wrench distribution).
 
 A task with ``level: force`` is a torque-level request (OSF-HQP T4: joint damping Γ = −k q̇); it
-is supported for joint tasks, whose torque rows are S_j Γ = −k_v q̇_j.
+is supported for joint tasks, whose torque rows are S_j Γ = −k_v q̇_j + S_j h: the damping acts on
+top of the joints' bias compensation, as the OSF's force-level tasks act on top of Γ_gc.
 
 Strategies (see :mod:`wbcbench.qp.hierarchy`): ``cascade`` (the papers' conventional method),
 ``nullspace``, ``weighted`` and ``rqr``.
@@ -128,9 +129,12 @@ class Hqp(Controller):
         n, k = state.n, state.k
         rows = np.zeros((term.dim, n + k + self.nc))
         if term.task.level == "force":
-            # torque-level joint task: S_j Γ = reference (Γ = −k_v q̇ for damping)
-            rows[:, n : n + k] = term.J[:, 6:]
-            return rows, term.acc_ref
+            # torque-level joint task on top of the bias compensation of its joints:
+            # S_j (Γ − h_a) = reference (Γ_j = −k_v q̇_j + h_j for damping). Without the
+            # compensation, the joints this task is the only one to command sag under gravity.
+            sel = term.J[:, 6:]
+            rows[:, n : n + k] = sel
+            return rows, term.acc_ref + sel @ state.h[6:]
         rows[:, :n] = term.J
         return rows, term.acc_ref - term.drift
 

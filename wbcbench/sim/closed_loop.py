@@ -54,10 +54,20 @@ class RunLog:
     """Per-tick arrays of one run (rows = control ticks that were executed)."""
 
     columns: dict[str, list[float]] = field(default_factory=dict)
+    rows: int = 0
 
     def add(self, row: dict[str, float]) -> None:
+        """Append one tick; a column a tick does not report is NaN there (e.g. a diagnostic
+        that only failed or only successful steps give)."""
         for key, value in row.items():
-            self.columns.setdefault(key, []).append(value)
+            column = self.columns.get(key)
+            if column is None:
+                column = self.columns[key] = [float("nan")] * self.rows
+            column.append(value)
+        self.rows += 1
+        for column in self.columns.values():
+            if len(column) < self.rows:
+                column.append(float("nan"))
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {k: np.asarray(v, dtype=float) for k, v in self.columns.items()}
