@@ -32,12 +32,16 @@ from wbcbench.errors import WbcBenchError
 def _cmd_list(args: argparse.Namespace) -> int:
     from wbcbench.controllers.registry import CONTROLLERS
     from wbcbench.qp import all_solvers
+    from wbcbench.qp.hierarchy import STRATEGY_SUMMARY
     from wbcbench.robots.loader import available_robots
     from wbcbench.scenarios.load import available_scenarios
 
     print("controllers:")
     for name, cls in sorted(CONTROLLERS.items()):
         print(f"  {name:<12} {cls.summary}")
+    print("hierarchy strategies (hqp `strategy`, lqp `strategy`):")
+    for name, text in STRATEGY_SUMMARY.items():
+        print(f"  {name:<12} {text}")
     print("solvers:")
     for info in all_solvers():
         state = "available" if info["available"] else f"missing ({info.get('reason', '')})"

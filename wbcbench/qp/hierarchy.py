@@ -61,7 +61,14 @@ if TYPE_CHECKING:
 
 Array = np.ndarray
 Strategy = Literal["cascade", "nullspace", "weighted", "rqr"]
-STRATEGIES: tuple[str, ...] = ("cascade", "nullspace", "weighted", "rqr")
+#: the strategies, with one line each for `wbcbench list`
+STRATEGY_SUMMARY: dict[str, str] = {
+    "cascade": "one QP per level over the full variable, slacks of the levels above held",
+    "nullspace": "levels above eliminated by a null-space basis (the sequential method)",
+    "weighted": "one QP, levels weighted",
+    "rqr": "regularised reduced-QR hierarchical least squares with active sets (no QP solver)",
+}
+STRATEGIES: tuple[str, ...] = tuple(STRATEGY_SUMMARY)
 RANK_TOL = 1e-10
 #: At level i (0-based) inequality bounds are widened by i FEAS_TOL (1 + |bound|): the previous
 #: optimum meets them only to the solver's tolerance, and with the held equalities leaving few
