@@ -39,7 +39,7 @@ def _cmd_list(args: argparse.Namespace) -> int:
     print("controllers:")
     for name, cls in sorted(CONTROLLERS.items()):
         print(f"  {name:<12} {cls.summary}")
-    print("hierarchy strategies (hqp `strategy`, lqp `strategy`):")
+    print("hierarchy strategies (hqp's `strategy`; lqp takes the QP ones):")
     for name, text in STRATEGY_SUMMARY.items():
         print(f"  {name:<12} {text}")
     print("solvers:")
