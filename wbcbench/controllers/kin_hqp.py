@@ -189,7 +189,7 @@ class GazeTask(Task):
     kind: ClassVar[str] = "orientation"
 
     def _full_jacobian(self, state: RobotState) -> np.ndarray:
-        raise NotImplementedError("GazeTask.evaluate builds its Jacobian directly")
+        raise TypeError("GazeTask.evaluate builds its Jacobian directly; this is never called")
 
     def _full_drift(self, state: RobotState) -> np.ndarray:
         return np.zeros(3)

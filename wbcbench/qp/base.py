@@ -15,6 +15,7 @@ Timing is measured by the backend, around native calls only (see :class:`Solutio
 from __future__ import annotations
 
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Hashable
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -43,7 +44,7 @@ class Guess:
     z_box: Array | None = None
 
 
-class QPSolver:
+class QPSolver(ABC):
     """Base class of every backend handle (one module per backend in ``qp/backends``).
 
     Class attributes a backend sets:
@@ -82,13 +83,15 @@ class QPSolver:
         """Native settings realising ``tier`` for this backend (empty for ``default``)."""
         return {}
 
+    @abstractmethod
     def _solve_fresh(self, problem: Problem, guess: Guess | None, keep: bool) -> Solution:
-        raise NotImplementedError
+        """Build the native object for ``problem`` and solve; keep the object when ``keep``."""
 
     def _solve_update(
         self, problem: Problem, guess: Guess | None, changed: frozenset[str]
     ) -> Solution:
-        raise NotImplementedError
+        """Update the kept native object in place (hot mode); backends that can override it."""
+        raise SolverError(f"{self.name} cannot update its solver in place", problem=problem)
 
     def _native_signature(self, problem: Problem) -> Hashable:
         """What must be equal for an in-place update; backends may add to the structure key."""
