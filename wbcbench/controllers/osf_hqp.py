@@ -24,7 +24,7 @@ operational-space parameters (see :mod:`wbcbench.sim.params`).
 from __future__ import annotations
 
 import numpy as np
-from pydantic import Field, field_validator
+from pydantic import Field
 
 from wbcbench.controllers.base import ControllerConfig, ControllerContext, ControlOutput, StageTimer
 from wbcbench.controllers.to_osf import OsfBaseConfig, OsfControllerBase, wrench_selection
@@ -35,10 +35,6 @@ from wbcbench.qp import Problem
 class OsfHqpConfig(OsfBaseConfig):
     """Settings of the OSF-based HQP."""
 
-    wrench_weights: list[float] = Field(
-        [1.0, 1.0, 0.0, 1.0, 1.0, 1.0],
-        description="diagonal of W_c per contact (fx fy fz mx my mz), or one value per wrench row",
-    )
     regularization: float = Field(
         1e-6, ge=0, description="weight of ‖F_r‖² [1/N²] in every QP (keeps the Hessians > 0)"
     )
@@ -49,13 +45,6 @@ class OsfHqpConfig(OsfBaseConfig):
         "[N·m, N]: a level inherits the solution above only to the solver's accuracy, and a "
         "bound active there would otherwise make the next level infeasible",
     )
-
-    @field_validator("wrench_weights")
-    @classmethod
-    def _nonnegative(cls, v: list[float]) -> list[float]:
-        if not v or min(v) < 0:
-            raise ValueError(f"wrench_weights must be non-negative numbers, got {v}")
-        return v
 
 
 class OsfHqp(OsfControllerBase):

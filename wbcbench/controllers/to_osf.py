@@ -51,6 +51,19 @@ from wbcbench.tasks.tasks import TaskTerm
 class OsfBaseConfig(ControllerConfig):
     """Settings both OSF controllers share."""
 
+    wrench_weights: list[float] = Field(
+        [1.0, 1.0, 0.0, 1.0, 1.0, 1.0],
+        description="diagonal of the wrench weighting (TO-OSF's S_f, OSF-HQP's W_c) per contact "
+        "(fx fy fz mx my mz), or one value per wrench row; 0 on the normal forces is the papers'",
+    )
+
+    @field_validator("wrench_weights")
+    @classmethod
+    def _nonnegative(cls, v: list[float]) -> list[float]:
+        if not v or min(v) < 0:
+            raise ValueError(f"wrench_weights must be non-negative numbers, got {v}")
+        return v
+
     inverse: Literal["cod", "svd", "pinv"] = Field(
         "cod", description="dynamically consistent inverse by COD or SVD; pinv = ablation"
     )
@@ -211,11 +224,6 @@ class ToOsfConfig(OsfBaseConfig):
         description="H per task priority (1 first; the last repeats for lower priorities)",
     )
     wrench_weight: float = Field(1.0, ge=0, description="H_w of ‖S_f f‖² (tangential + moments)")
-    wrench_weights: list[float] = Field(
-        [1.0, 1.0, 0.0, 1.0, 1.0, 1.0],
-        description="diagonal of S_f (fx fy fz mx my mz) per contact, or one value per wrench row; "
-        "0 on the normal forces is the paper's S_f",
-    )
     wrench_cost: Literal["total", "internal"] = Field(
         "total", description="S_f applied to the total wrench, or to F_opt only (literal eq. 11)"
     )
@@ -230,13 +238,6 @@ class ToOsfConfig(OsfBaseConfig):
     def _positive(cls, v: list[float]) -> list[float]:
         if not v or min(v) <= 0:
             raise ValueError(f"weights must be a non-empty list of positive numbers, got {v}")
-        return v
-
-    @field_validator("wrench_weights")
-    @classmethod
-    def _nonnegative(cls, v: list[float]) -> list[float]:
-        if not v or min(v) < 0:
-            raise ValueError(f"wrench_weights must be non-negative numbers, got {v}")
         return v
 
 

@@ -20,6 +20,21 @@ def tier_eps(tier: str) -> float | None:
     return TIER_EPS.get(tier)
 
 
+def gap_checked_tier_settings(tier: str) -> dict[str, Any]:
+    """The tier as absolute primal / dual / duality-gap tolerances, relative ones off (the
+    settings ProxQP and PIQP share)."""
+    eps = tier_eps(tier)
+    if eps is None:
+        return {}
+    return {
+        "eps_abs": eps,
+        "eps_rel": 0.0,
+        "check_duality_gap": True,
+        "eps_duality_gap_abs": eps,
+        "eps_duality_gap_rel": 0.0,
+    }
+
+
 def split_rows(C: Array, lower: Array, upper: Array) -> tuple[Array, Array, Index, Index]:
     """Rewrite ``lower ≤ C x ≤ upper`` as ``G x ≤ h`` keeping finite sides only.
 

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import piqp as _piqp
 
-from wbcbench.qp.backends._common import Index, apply_settings, tier_eps
+from wbcbench.qp.backends._common import Index, apply_settings, gap_checked_tier_settings
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Array, Problem
 from wbcbench.qp.solution import Solution, SolutionStatus
@@ -75,16 +75,7 @@ class PIQPSolver(QPSolver):
 
     @staticmethod
     def tier_settings(tier: str) -> dict[str, Any]:
-        eps = tier_eps(tier)
-        if eps is None:
-            return {}
-        return {
-            "eps_abs": eps,
-            "eps_rel": 0.0,
-            "check_duality_gap": True,
-            "eps_duality_gap_abs": eps,
-            "eps_duality_gap_rel": 0.0,
-        }
+        return gap_checked_tier_settings(tier)
 
     def _native_signature(self, problem: Problem) -> Hashable:
         lb, ub = problem.box()

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from proxsuite import proxqp
 
-from wbcbench.qp.backends._common import apply_settings, tier_eps
+from wbcbench.qp.backends._common import apply_settings, gap_checked_tier_settings
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Problem
 from wbcbench.qp.solution import Solution, SolutionStatus
@@ -44,16 +44,7 @@ class ProxQPSolver(QPSolver):
 
     @staticmethod
     def tier_settings(tier: str) -> dict[str, Any]:
-        eps = tier_eps(tier)
-        if eps is None:
-            return {}
-        return {
-            "eps_abs": eps,
-            "eps_rel": 0.0,
-            "check_duality_gap": True,
-            "eps_duality_gap_abs": eps,
-            "eps_duality_gap_rel": 0.0,
-        }
+        return gap_checked_tier_settings(tier)
 
     def _solve_fresh(self, problem: Problem, guess: Guess | None, keep: bool) -> Solution:
         box = problem.has_box
