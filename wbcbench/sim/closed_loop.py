@@ -146,6 +146,20 @@ class ContactSensor:
         return out
 
 
+def output_row(t: float, out: ControlOutput, task_parts: dict[str, list[str]]) -> dict[str, float]:
+    """The log columns every runner writes for a tick: time, status, stage timings and each
+    task's error norms (``task_parts`` collects the parts each task reports)."""
+    row: dict[str, float] = {"t": t, "ok": float(out.ok), "iterations": out.iterations}
+    for stage, value in out.timings.items():
+        row[f"time.{stage}"] = value
+    for term in out.terms:
+        norms = term.task.error_norms(term)
+        task_parts.setdefault(term.task.name, list(norms))
+        for part, value in norms.items():
+            row[f"err.{term.task.name}.{part}"] = value
+    return row
+
+
 def prepare_model(robot: Robot, loaded: LoadedScenario) -> mujoco.MjModel:
     """A copy of the robot's MuJoCo model with the scenario's simulation settings applied."""
     sim = loaded.spec.sim
@@ -247,14 +261,7 @@ def run_closed_loop(
             for _ in range(substeps):
                 mujoco.mj_step(model, data)
 
-            row: dict[str, float] = {"t": t, "ok": float(out.ok), "iterations": out.iterations}
-            for stage, value in out.timings.items():
-                row[f"time.{stage}"] = value
-            for term in out.terms:
-                norms = term.task.error_norms(term)
-                task_parts.setdefault(term.task.name, list(norms))
-                for part, value in norms.items():
-                    row[f"err.{term.task.name}.{part}"] = value
+            row = output_row(t, out, task_parts)
             for j, name in enumerate(robot.joint_names):
                 row[f"tau.{name}"] = tau[j]
             sim_w = sensor.wrenches(data)

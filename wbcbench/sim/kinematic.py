@@ -35,7 +35,7 @@ from wbcbench.scenarios.load import (
     LoadedScenario,
     check_against_robot,
 )
-from wbcbench.sim.closed_loop import RunLog, RunResult, RunSettings
+from wbcbench.sim.closed_loop import RunLog, RunResult, RunSettings, output_row
 from wbcbench.sim.setup import build_controller
 
 
@@ -108,14 +108,7 @@ def run_kinematic(
                         f"{consecutive} failed ticks in a row: {out.message}",
                     )
 
-            row: dict[str, float] = {"t": t, "ok": float(out.ok), "iterations": out.iterations}
-            for stage, value in out.timings.items():
-                row[f"time.{stage}"] = value
-            for term in out.terms:
-                norms = term.task.error_norms(term)
-                task_parts.setdefault(term.task.name, list(norms))
-                for part, value in norms.items():
-                    row[f"err.{term.task.name}.{part}"] = value
+            row = output_row(t, out, task_parts)
             row["base_z"] = float(q[2])
             row["com.x"], row["com.y"], row["com.z"] = (float(x) for x in state.com)
             joints = q[7:]
