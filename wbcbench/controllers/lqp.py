@@ -56,8 +56,8 @@ from wbcbench.tasks.contacts import stack_wrench_constraints
 from wbcbench.tasks.tasks import TaskTerm
 
 
-class LqpConfig(ControllerConfig):
-    """Settings of the conventional LQP."""
+class LexicographicConfig(ControllerConfig):
+    """Settings both LQPs (conventional and reduced-centroidal) share."""
 
     strategy: Literal["nullspace", "cascade", "weighted"] = Field(
         "nullspace",
@@ -68,7 +68,7 @@ class LqpConfig(ControllerConfig):
         300.0, gt=0, description="joint-acceleration limit |q̈_j| of actuated joints [rad/s²]"
     )
     wrench_regularization: float = Field(
-        1e-4, gt=0, description="weight of ‖f‖² next to q̈ᵀ M q̈ in the final objective"
+        1e-4, gt=0, description="weight of ‖f‖² next to the acceleration energy"
     )
     prox: float = Field(
         1e-8,
@@ -78,8 +78,8 @@ class LqpConfig(ControllerConfig):
     )
     weights: list[float] = Field(
         [1e4, 1e2, 1.0],
-        description="weighted strategy only: weight per level (contacts, task priorities 1, "
-        "2, …; the last one repeats; the dynamics are hard constraints)",
+        description="weighted strategy only: weight per level (the last one repeats; the "
+        "dynamics are hard constraints)",
     )
     final_weight: float = Field(
         1e-4,
@@ -87,6 +87,10 @@ class LqpConfig(ControllerConfig):
         description="weight of the acceleration energy next to the last level's slacks "
         "(sequential strategies: in the last level's QP; weighted: next to the level weights)",
     )
+
+
+class LqpConfig(LexicographicConfig):
+    """Settings of the conventional LQP."""
 
 
 # -- pieces shared with the reduced-centroidal LQP ---------------------------------------------

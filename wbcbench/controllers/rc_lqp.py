@@ -75,6 +75,7 @@ from wbcbench.controllers.base import (
     StageTimer,
 )
 from wbcbench.controllers.lqp import (
+    LexicographicConfig,
     SolverPool,
     energy_objective,
     failed_output,
@@ -96,12 +97,9 @@ from wbcbench.tasks.contacts import stack_wrench_constraints
 from wbcbench.tasks.tasks import TaskTerm
 
 
-class RcLqpConfig(ControllerConfig):
-    """Settings of the reduced-centroidal LQP."""
+class RcLqpConfig(LexicographicConfig):
+    """Settings of the reduced-centroidal LQP (``strategy`` etc. apply to each of its LQPs)."""
 
-    strategy: Literal["nullspace", "cascade", "weighted"] = Field(
-        "nullspace", description="how each of the two LQPs is solved (see lqp)"
-    )
     assembly: Literal["exact", "paper"] = Field(
         "exact",
         description="torque from the full inverse dynamics at the combined solution, or the "
@@ -126,22 +124,6 @@ class RcLqpConfig(ControllerConfig):
     diagnostics: bool = Field(
         False,
         description="also report assembly_diff under the exact assembly (one more RNEA per tick)",
-    )
-    qdd_limit: float = Field(300.0, gt=0, description="joint-acceleration limit [rad/s²]")
-    wrench_regularization: float = Field(1e-4, gt=0, description="weight of ‖f‖² in LQP 1")
-    prox: float = Field(
-        1e-8,
-        ge=0,
-        description="proximal weight of the retry of a level the backend failed to solve (a "
-        "level's QP is only semidefinite; see wbcbench.qp.hierarchy); 0 = no retry",
-    )
-    weights: list[float] = Field(
-        [1e4, 1e2, 1.0],
-        description="weighted strategy only: weight per level of each LQP (last one repeats; "
-        "LQP 1's dynamics are hard constraints)",
-    )
-    final_weight: float = Field(
-        1e-4, gt=0, description="weight of the energy next to the last level's slacks (see lqp)"
     )
     coupling_tol: float = Field(
         1e-6, gt=0, description="coupling_priority: eq. (30) violation that triggers re-solving"
