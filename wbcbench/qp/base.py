@@ -75,7 +75,7 @@ class QPSolver(ABC):
         self.builds = 0  # native objects built by _solve_fresh with keep=True
         self._native: Any = None
         self._native_key: Hashable = None
-        self._last: dict[str, Array | None] = {}
+        self._last: dict[str, bytes | None] = {}
 
     # ---- backend hooks -------------------------------------------------------------------
     @staticmethod
@@ -182,33 +182,27 @@ class QPSolver(ABC):
 
     def _solve_hot(self, problem: Problem, guess: Guess | None, explicit: bool) -> Solution:
         key = self._native_signature(problem)
+        snapshot = self._snapshot(problem)
         if self._native is not None and key == self._native_key and self._can_update(problem):
             # The native object already holds the previous iterate: pass only an explicit x0.
-            sol = self._solve_update(problem, guess if explicit else None, self._changed(problem))
+            changed = frozenset(k for k in DATA_FIELDS if snapshot[k] != self._last.get(k))
+            sol = self._solve_update(problem, guess if explicit else None, changed)
         else:
             self._native = None
             sol = self._solve_fresh(problem, guess, keep=True)
             sol.rebuilt = True
             self.builds += 1
             self._native_key = key
-        self._remember(problem)
+        self._last = snapshot
         return sol
 
-    def _changed(self, problem: Problem) -> frozenset[str]:
-        out = []
+    @staticmethod
+    def _snapshot(problem: Problem) -> dict[str, bytes | None]:
+        """The data as bytes: a copy (a controller may refill its arrays in place) that compares
+        by memcmp, the cheapest exact test (a ±0 or NaN mismatch only makes an update send more
+        than it must)."""
+        out: dict[str, bytes | None] = {}
         for key in DATA_FIELDS:
-            new = getattr(problem, key)
-            old = self._last.get(key)
-            if new is None or old is None:
-                if new is not old:
-                    out.append(key)
-            elif not np.array_equal(new, old):
-                out.append(key)
-        return frozenset(out)
-
-    def _remember(self, problem: Problem) -> None:
-        # Copies, because a controller may refill preallocated arrays in place.
-        self._last = {
-            key: None if getattr(problem, key) is None else np.array(getattr(problem, key))
-            for key in DATA_FIELDS
-        }
+            v = getattr(problem, key)
+            out[key] = None if v is None else v.tobytes()
+        return out

@@ -16,6 +16,7 @@ zero); ``l``, ``u``, ``lb`` and ``ub`` may hold ``±inf`` and the box ``lb``/``u
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Hashable
 from dataclasses import dataclass, field
 from os import PathLike
@@ -139,49 +140,62 @@ class Problem:
     def validate(self) -> None:
         """Check shapes, finiteness of ``H, g, A, b, C``, symmetry of ``H`` and ``l ≤ u``.
 
+        Called on every solve, so the common case (a valid problem) is a handful of whole-array
+        reductions; only a problem that fails one of them is searched for the precise fault.
+
         Raises:
             SolverError: naming the first inconsistency; it carries this problem.
         """
-        n, n_eq, n_in = self.n, self.n_eq, self.n_in
-
-        def fail(msg: str) -> SolverError:
-            label = f"problem {self.name!r}: " if self.name else "problem: "
-            return SolverError(label + msg, problem=self)
-
-        if self.g.ndim != 1:
-            raise fail(f"g must be a vector, got shape {self.g.shape}")
-        expected = {
-            "H": (self.H, (n, n)),
-            "A": (self.A, (n_eq, n)),
-            "b": (self.b, (n_eq,)),
-            "C": (self.C, (n_in, n)),
-            "l": (self.l, (n_in,)),
-            "u": (self.u, (n_in,)),
-        }
-        if self.lb is not None:
-            expected["lb"] = (self.lb, (n,))
-        if self.ub is not None:
-            expected["ub"] = (self.ub, (n,))
-        for key, (arr, shape) in expected.items():
-            if arr.shape != shape:
-                raise fail(f"{key} has shape {arr.shape}, expected {shape} (n={n})")
-        for key in ("H", "g", "A", "b", "C"):
-            arr = self.g if key == "g" else expected[key][0]
-            if not np.all(np.isfinite(arr)):
-                raise fail(f"{key} has non-finite entries")
-        scale = max(1.0, float(np.max(np.abs(self.H)))) if n else 1.0
-        if n and float(np.max(np.abs(self.H - self.H.T))) > SYMMETRY_RTOL * scale:
-            raise fail("H is not symmetric")
-        for lo_key, hi_key, lo, hi in (
-            ("l", "u", self.l, self.u),
-            ("lb", "ub", *self.box()),
+        n = self.g.shape[0] if self.g.ndim == 1 else -1
+        if n < 0:
+            raise self._invalid(f"g must be a vector, got shape {self.g.shape}")
+        n_eq, n_in = self.A.shape[0], self.C.shape[0]
+        for key, arr, shape in (
+            ("H", self.H, (n, n)),
+            ("A", self.A, (n_eq, n)),
+            ("b", self.b, (n_eq,)),
+            ("C", self.C, (n_in, n)),
+            ("l", self.l, (n_in,)),
+            ("u", self.u, (n_in,)),
+            ("lb", self.lb, (n,)),
+            ("ub", self.ub, (n,)),
         ):
-            if np.any(np.isnan(lo)) or np.any(np.isnan(hi)):
-                raise fail(f"{lo_key}/{hi_key} contain NaN")
-            bad = np.flatnonzero(lo > hi)
-            if bad.size:
-                i = int(bad[0])
-                raise fail(f"{lo_key}[{i}] = {lo[i]:g} > {hi_key}[{i}] = {hi[i]:g}")
+            if arr is not None and arr.shape != shape:
+                raise self._invalid(f"{key} has shape {arr.shape}, expected {shape} (n={n})")
+        # a sum is finite only if every term is (or, spuriously, on overflow: checked below)
+        total = self.H.sum() + self.g.sum()
+        if n_eq:
+            total += self.A.sum() + self.b.sum()
+        if n_in:
+            total += self.C.sum()
+        if not math.isfinite(total):
+            for key in ("H", "g", "A", "b", "C"):
+                if not np.all(np.isfinite(getattr(self, key))):
+                    raise self._invalid(f"{key} has non-finite entries")
+        H = self.H
+        if n and H.tobytes() != H.T.tobytes():  # exactly symmetric: the usual case, a memcmp
+            if abs(H - H.T).max() > SYMMETRY_RTOL * max(1.0, abs(H).max()):
+                raise self._invalid("H is not symmetric")
+        # NaN compares false, so this also catches a NaN bound
+        if not (self.l <= self.u).all():
+            self._bound_fault("l", "u", self.l, self.u)
+        lb, ub = self.lb, self.ub
+        if lb is not None and ub is not None:
+            if not (lb <= ub).all():
+                self._bound_fault("lb", "ub", lb, ub)
+        elif lb is not None or ub is not None:
+            if np.isnan(lb if ub is None else ub).any():
+                raise self._invalid("lb/ub contain NaN")
+
+    def _invalid(self, msg: str) -> SolverError:
+        label = f"problem {self.name!r}: " if self.name else "problem: "
+        return SolverError(label + msg, problem=self)
+
+    def _bound_fault(self, lo_key: str, hi_key: str, lo: Array, hi: Array) -> None:
+        if np.any(np.isnan(lo)) or np.any(np.isnan(hi)):
+            raise self._invalid(f"{lo_key}/{hi_key} contain NaN")
+        i = int(np.flatnonzero(lo > hi)[0])
+        raise self._invalid(f"{lo_key}[{i}] = {lo[i]:g} > {hi_key}[{i}] = {hi[i]:g}")
 
     def save(self, path: str | PathLike[str]) -> None:
         """Write the problem to an ``.npz`` file (``meta`` stored as JSON) for offline replay."""
