@@ -80,6 +80,28 @@ def plan(path: str):
             "tracking[0].scenarios[0]",
             ["no_such"],
         ),
+        (
+            "version: 1\ntiming:\n  - scenarios: [ahn_dof_scaling]\n"
+            "    robots: [tocabi_dof20, tocabi_dof99]\n",
+            "timing[0].robots[1]",
+            ["unknown robot 'tocabi_dof99'", "valid choices: comanplus_like", "tocabi_dof45"],
+        ),
+        (
+            "version: 1\ntiming:\n  - scenarios: [ahn_dof_scaling]\n    record_with: [lpq]\n",
+            "timing[0].record_with[0]",
+            ["unknown controller 'lpq'", "lqp", "rc_lqp"],
+        ),
+        (
+            "version: 1\ntracking:\n  - scenarios: [ahn_dof_scaling]\n    check_tol: -1\n",
+            "tracking[0].check_tol",
+            ["greater than 0"],
+        ),
+        (
+            "version: 1\ntracking:\n  - scenarios: [lee2021access_s2_feasibility]\n"
+            "    configs: {to_osf: [{weights: []}]}\n",
+            "tracking[0].configs.to_osf[0].weights",
+            ["non-empty list of positive numbers"],
+        ),
     ],
 )
 def test_a_bad_sweep_file_names_the_file_the_key_and_the_choices(
@@ -173,7 +195,8 @@ def test_a_solver_that_raises_or_lies_becomes_a_failure_row(
     assert "RuntimeError: injected backend crash" in crash["message"]
     lie = runs.loc[("timing", "quadprog")]
     assert lie["status"] == "failed"
-    assert "quadprog reported solved but primal residual" in lie["message"]
+    assert "reported solved but primal residual" in lie["message"]
+    assert "(quadprog, " in lie["message"]
     # the sweep went on: the healthy solver's rows are there and fine
     assert runs.loc[("tracking", "proxqp"), "status"] == "ok"
     assert runs.loc[("timing", "proxqp"), "status"] == "ok"
@@ -201,3 +224,78 @@ def plan_tracking_only(path: str):
     p = plan(path)
     p.jobs = [j for j in p.jobs if j.kind == "tracking"]
     return p
+
+
+def test_robots_run_a_scenario_once_per_robot_each_its_own_hash_and_recording(
+    tmp_path: Path,
+) -> None:
+    from wbcbench.bench.runner import run_id
+
+    path = write(
+        tmp_path,
+        "version: 1\ntiming:\n  - scenarios: [ahn_dof_scaling]\n"
+        "    robots: [tocabi_dof20, tocabi_like, tocabi_dof45, tocabi_dof20]\n"
+        "    controllers: [lqp, rc_lqp]\n    solvers: [osqp]\n    record_with: [lqp]\n",
+    )
+    p = plan(path)
+    robots = [j.loaded.spec.robot for j in p.jobs]
+    assert robots == ["tocabi_dof20"] * 2 + ["tocabi_like"] * 2 + ["tocabi_dof45"] * 2
+    assert [j.overrides for j in p.jobs[::2]] == [
+        ("robot=tocabi_dof20",),
+        ("robot=tocabi_like",),
+        ("robot=tocabi_dof45",),
+    ]
+    assert len({j.loaded.hash for j in p.jobs}) == 3
+    assert {j.options["recorder"] for j in p.jobs} == {"lqp"}
+    ids = {run_id(j.loaded, j.settings, "v", extra=j.extra) for j in p.jobs}
+    assert len(ids) == 6  # resume tells every robot's rows apart
+    # one recording per robot: the cache key is the scenario hash
+    assert len(p.timing_by_scenario) == 3
+
+
+def test_a_closed_loop_run_rejects_a_qp_reported_solved_that_is_not(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A backend wrapper that perturbs x on every third solve and still reports it solved."""
+    from dataclasses import replace
+
+    from wbcbench.controllers.base import ControllerContext
+
+    class Liar:
+        def __init__(self, inner) -> None:
+            self.inner, self.calls = inner, 0
+
+        def solve(self, problem, *args, **kwargs):
+            sol = self.inner.solve(problem, *args, **kwargs)
+            self.calls += 1
+            if sol.success and self.calls % 3 == 1:
+                return replace(sol, x=sol.x + 1.0)
+            return sol
+
+        def __getattr__(self, name):
+            return getattr(self.inner, name)
+
+    honest = ControllerContext.new_solver
+
+    def new_solver(self):
+        handle = honest(self)
+        return Liar(handle) if self.solver == "daqp" else handle
+
+    monkeypatch.setattr(ControllerContext, "new_solver", new_solver)
+    text = TINY.format(tracking_solvers="daqp, proxqp", timing_solvers="proxqp")
+    text = text[: text.index("timing:")]
+    report = run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
+    runs = pd.read_csv(tmp_path / "out" / "runs.csv").set_index("solver")
+    lie = runs.loc["daqp"]
+    assert lie["status"] == "failed"
+    assert lie["message"].startswith("reported solved but primal residual"), lie["message"]
+    assert "(daqp, " in lie["message"] and "at t = 0.000 s" in lie["message"]
+    assert "(20 of 60 ticks rejected)" in lie["message"]
+    assert lie["failures"] == 20 and lie["ticks"] == 60
+    # the sweep went on and the honest run is fine
+    assert runs.loc["proxqp", "status"] == "ok"
+    assert report.failed == [
+        f"tracking tocabi_stand_sway · qp_wbc · daqp · cold: failed: {lie['message']}"
+    ]
+    log = pd.read_parquet(tmp_path / "out" / "logs" / f"{lie['run_id']}.parquet")
+    assert list(log["ok"][:4]) == [0.0, 1.0, 1.0, 0.0]

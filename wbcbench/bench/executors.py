@@ -31,11 +31,13 @@ def run_tracking(
     rid: str,
     version: str,
     log_every: int = 1,
+    check_tol: float | None = None,
 ) -> RunRecord:
     """One closed-loop run from plain arguments (what a dask worker receives).
 
     The record carries no ``RunResult`` (it holds the robot's native models, which do not
-    pickle); its per-tick log keeps every ``log_every``-th tick.
+    pickle); its per-tick log keeps every ``log_every``-th tick. ``check_tol``: see
+    :func:`wbcbench.bench.runner.compute_tracking`.
     """
     from threadpoolctl import threadpool_limits
 
@@ -44,7 +46,7 @@ def run_tracking(
 
     with threadpool_limits(1):
         loaded = load_scenario(scenario_path, list(overrides))
-        record = compute_tracking(loaded, settings, rid, version)
+        record = compute_tracking(loaded, settings, rid, version, check_tol=check_tol)
     record.result = None
     if record.log and log_every > 1:
         record.log = {k: v[::log_every] for k, v in record.log.items()}
@@ -59,6 +61,7 @@ def _arguments(job: Job, rid: str, version: str) -> tuple[Any, ...]:
         rid,
         version,
         int(job.options.get("log_every", 1)),
+        job.options.get("check_tol"),
     )
 
 

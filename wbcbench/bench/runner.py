@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from wbcbench.bench.checks import ReportedCheck
 from wbcbench.bench.results import ResultsStore
 from wbcbench.errors import WbcBenchError
 from wbcbench.metrics.run_metrics import run_metrics
@@ -92,8 +93,14 @@ def compute_tracking(
     rid: str,
     version: str,
     progress: Callable[[int, int], None] | None = None,
+    check_tol: float | None = None,
 ) -> RunRecord:
     """Run one closed-loop combination and return its row, metrics and log (nothing stored).
+
+    With ``check_tol``, every QP the solver reports solved is checked after its step (outside
+    the timed stages, :mod:`wbcbench.bench.checks`): one whose primal residual exceeds
+    ``check_tol`` × its data's magnitude fails the tick, and the run ends ``failed`` with the
+    message ``reported solved but …`` (or keeps a fall's status with that message appended).
 
     Never raises: an exception becomes a row with status ``error`` and its message.
     """
@@ -105,7 +112,15 @@ def compute_tracking(
     log = None
     try:
         robot = load_robot(spec.robot, base_dir=loaded.path.parent)
-        result = run_closed_loop(loaded, settings, robot=robot, progress=progress)
+        checker = ReportedCheck(check_tol) if check_tol else None
+        result = run_closed_loop(
+            loaded,
+            settings,
+            robot=robot,
+            progress=progress,
+            wrap_solver=checker.wrap if checker else None,
+            check=checker,
+        )
         contacts = build_contacts(spec, robot)
         window = spec.metrics.window
         for m in run_metrics(result, contacts, window, spec.metrics.timing_warmup):

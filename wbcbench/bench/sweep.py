@@ -12,10 +12,12 @@ into closed-loop runs, each ``timing`` matrix into open-loop replay timing runs 
         solvers: [default]          # default | native | all | names | globs
         configs: {to_osf: [{}, {inverse: pinv}]}    # controller-config variants
         set: ["duration=3"]         # scenario overrides for every scenario of the matrix
+        robots: [tocabi_dof20, tocabi_dof45]    # one run per robot (override robot=<name>)
     timing:
       - solvers: [native]
         modes: [cold, hot]
         ticks: 300
+        record_with: [lqp]          # the controller whose closed-loop run is replayed
         skip: [{solver: piqp, mode: cold, reason: "interior point, 15 ms per solve"}]
 
 :func:`plan_sweep` validates everything (every scenario against its robot, every controller,
@@ -85,6 +87,11 @@ class MatrixSpec(Strict):
     )
     set: list[str] = Field(default_factory=list, description="KEY=VALUE for every scenario")
     variants: list[list[str]] = Field([[]], description="further override sets, one run each")
+    robots: list[str] = Field(
+        default_factory=list,
+        description="run every scenario on each of these robots (override robot=<name>, one "
+        "scenario hash each); empty: the scenario's own robot",
+    )
     skip: list[SkipRule] = Field(default_factory=list)
 
 
@@ -97,6 +104,12 @@ class TrackingSpec(MatrixSpec):
         gt=0,
         description="shorten longer scenarios to this [s] (their metrics window moves inside "
         "the run); for quick sweeps, never for reproducing a paper's window",
+    )
+    check_tol: float | None = Field(
+        1e-2,
+        gt=0,
+        description="after each step, QPs reported solved must have a primal residual below "
+        "check_tol × the data's magnitude, else the tick fails (None: no check)",
     )
 
 
@@ -373,6 +386,21 @@ def _check_config_keys(matrix: MatrixSpec, file: str, key: str) -> None:
             raise ScenarioError(file, f"{key}.configs.{name}", str(exc)) from None
 
 
+def _robot_overrides(matrix: MatrixSpec, file: str, key: str) -> list[tuple[str, ...]]:
+    """One ``robot=<name>`` override per entry of ``robots`` (checked); ``[()]`` when empty."""
+    from wbcbench.robots.loader import available_robots
+
+    if not matrix.robots:
+        return [()]
+    valid = available_robots()
+    for i, name in enumerate(matrix.robots):
+        if name not in valid:
+            raise ScenarioError(
+                file, f"{key}.robots[{i}]", str(UnknownNameError("robot", name, valid))
+            )
+    return [(f"robot={name}",) for name in dict.fromkeys(matrix.robots)]
+
+
 def _timing_start(matrix: TimingSpec, loaded: Any) -> float:
     """The window start: given, else the metrics window's, moved earlier to fit the run."""
     if matrix.start is not None:
@@ -442,10 +470,16 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
         names = resolve_scenarios(matrix.scenarios, file, f"{key}.scenarios")
         controllers = resolve_controllers(matrix.controllers, file, f"{key}.controllers")
         solvers = resolve_solvers(matrix.solvers, file, f"{key}.solvers")
+        robots = _robot_overrides(matrix, file, key)
+        combos = [
+            (robot, variant, f"{key}.robots[{r}]" if robot else f"{key}.variants[{v}]")
+            for r, robot in enumerate(robots)
+            for v, variant in enumerate(matrix.variants)
+        ]
         for name in names:
-            for v, variant in enumerate(matrix.variants):
-                overrides = (*matrix.set, *variant)
-                loaded = scenarios.get(name, overrides, file, f"{key}.variants[{v}]")
+            for robot, variant, where in combos:
+                overrides = (*robot, *matrix.set, *variant)
+                loaded = scenarios.get(name, overrides, file, where)
                 if isinstance(matrix, TrackingSpec) and matrix.max_duration is not None:
                     extra = _shorten(loaded.spec, matrix.max_duration)
                     if extra:
@@ -455,8 +489,10 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                 if isinstance(matrix, TimingSpec):
                     options = _timing_options(matrix, loaded, file, key)
                     timing_opts[f"{loaded.name}@{loaded.hash}"] = options
-                elif isinstance(matrix, TrackingSpec) and matrix.log_every != 1:
-                    options = dict(log_every=matrix.log_every)
+                elif isinstance(matrix, TrackingSpec):
+                    options = dict(check_tol=matrix.check_tol)
+                    if matrix.log_every != 1:
+                        options["log_every"] = matrix.log_every
                 for controller, explicit in controllers:
                     reason = controller_class(controller).applies_to(loaded.spec)
                     if reason:

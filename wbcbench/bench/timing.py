@@ -9,8 +9,8 @@ controller reports) and every hierarchy level (``solve.<level>``): median, IQR, 
 min and the deadline-miss rate at 1 kHz.
 
 After each timed step (outside the timed region) every QP the solver reported ``solved`` is
-checked independently: a primal residual above ``check_tol`` × the data's magnitude marks the
-tick failed with the message ``reported solved but …``.
+checked independently (:mod:`wbcbench.bench.checks`): a primal residual above ``check_tol`` × the
+data's magnitude marks the tick failed with the message ``reported solved but …``.
 """
 
 from __future__ import annotations
@@ -23,11 +23,12 @@ from typing import Any
 
 import numpy as np
 
+from wbcbench.bench.checks import SolverCapture, check_reported
 from wbcbench.bench.runner import RunRecord, base_row
 from wbcbench.bench.sweep import HlsScalingSpec, Job, default_solver
 from wbcbench.errors import WbcBenchError
 from wbcbench.metrics.timing import timing_stats
-from wbcbench.qp import Problem, Solution, check_solution
+from wbcbench.qp import Problem, Solution
 from wbcbench.scenarios.load import LoadedScenario, load_scenario
 from wbcbench.sim.closed_loop import RunSettings
 from wbcbench.sim.replay import Recording, record_states, replay
@@ -66,47 +67,6 @@ def cached_recording(
         rec.save(tmp)
         tmp.replace(path)  # atomic: an interrupted recording leaves no half file
     return rec.window(start, ticks)
-
-
-# -- validity of what a solver reports
-
-
-def data_scale(problem: Problem) -> float:
-    """The magnitude of a problem's data: max(1, |g|, |b|, finite |l|, |u|, |lb|, |ub|)."""
-    parts = [1.0, *(float(np.max(np.abs(v), initial=0.0)) for v in (problem.g, problem.b))]
-    for v in (problem.l, problem.u, problem.lb, problem.ub):
-        if v is not None and v.size:
-            finite = v[np.isfinite(v)]
-            parts.append(float(np.max(np.abs(finite), initial=0.0)))
-    return max(parts)
-
-
-class _Capture:
-    """A solver handle that remembers each (problem, solution) of the current step."""
-
-    def __init__(self, inner: Any, sink: list[tuple[Problem, Solution]]) -> None:
-        self._inner = inner
-        self._sink = sink
-
-    def solve(self, problem: Problem, *args: Any, **kwargs: Any) -> Solution:
-        sol = self._inner.solve(problem, *args, **kwargs)
-        self._sink.append((problem, sol))
-        return sol
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._inner, name)
-
-
-def check_reported(pairs: list[tuple[Problem, Solution]], tol: float) -> str:
-    """The first QP reported solved whose primal residual exceeds ``tol`` × its data scale."""
-    for problem, sol in pairs:
-        if not sol.success:
-            continue
-        limit = tol * data_scale(problem)
-        v = check_solution(problem, sol, tol=limit, dual_tol=float("inf"))
-        if not v.ok:
-            return f"{sol.solver} reported solved but {v.message} ({problem.name or 'QP'})"
-    return ""
 
 
 # -- timing rows
@@ -173,7 +133,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
             rec,
             job.settings,
             on_step=after_step,
-            wrap_solver=lambda handle: _Capture(handle, pairs),
+            wrap_solver=lambda handle: SolverCapture(handle, pairs),
         )
         warmup = min(int(opts["warmup"]), max(0, len(rec) - 1))
         for m in timing_metrics(timings.stages, warmup):
@@ -254,7 +214,9 @@ def dump_problems(
         return ""
 
     settings = RunSettings(controller=controller, solver=default_solver(), mode="hot")
-    replay(loaded, rec, settings, on_step=keep, wrap_solver=lambda handle: _Capture(handle, pairs))
+    replay(
+        loaded, rec, settings, on_step=keep, wrap_solver=lambda handle: SolverCapture(handle, pairs)
+    )
     (target / "done").write_text(json.dumps({"files": len(saved)}) + "\n")
     return saved
 

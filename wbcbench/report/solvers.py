@@ -71,7 +71,7 @@ DEFAULT_TIER_EPS = 1e-6
 
 def tier_tolerance(tier: str, problem: Problem) -> float:
     """Absolute tolerance of a tier, scaled by the magnitude of the problem's data."""
-    from wbcbench.bench.timing import data_scale
+    from wbcbench.bench.checks import data_scale
 
     return TIER_EPS.get(tier, DEFAULT_TIER_EPS) * data_scale(problem)
 
@@ -125,7 +125,7 @@ def reference_solution(problem: Problem, solver: str) -> tuple[np.ndarray | None
 
 
 def _scale(problem: Problem) -> float:
-    from wbcbench.bench.timing import data_scale
+    from wbcbench.bench.checks import data_scale
 
     return data_scale(problem)
 

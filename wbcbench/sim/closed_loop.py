@@ -32,7 +32,7 @@ from wbcbench.scenarios.load import (
     check_against_robot,
     torque_limits,
 )
-from wbcbench.sim.setup import build_controller
+from wbcbench.sim.setup import WrappingContext, build_controller
 
 STAGES = ("dynamics", "build", "solve", "solve_internal", "total")
 LOST_CONTACT_TICKS = 50
@@ -160,6 +160,46 @@ def output_row(t: float, out: ControlOutput, task_parts: dict[str, list[str]]) -
     return row
 
 
+class Rejections:
+    """Ticks whose successful step an independent check rejected (see ``run_closed_loop``)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.first = ""
+        self.last = ""
+
+    def add(self, t: float, message: str) -> None:
+        self.count += 1
+        self.last = message
+        if not self.first:
+            self.first = f"{message} at t = {t:.3f} s"
+
+    def outcome(self, status: str, message: str, ticks: int) -> tuple[str, str]:
+        """The run's status and message with the rejected ticks accounted for.
+
+        A run that would have ended ``ok`` ends ``failed`` with the first rejection's message
+        (the check's own words first, e.g. ``reported solved but ...``); a run that fell or
+        failed for another reason keeps its status and gets the rejections appended.
+        """
+        if not self.count:
+            return status, message
+        counted = f"({self.count} of {ticks} ticks rejected)"
+        if status == "ok":
+            return "failed", f"{self.first} {counted}"
+        if message.endswith(self.last):  # stopped by consecutive rejections: said already
+            return status, f"{message} {counted}"
+        return status, f"{message}; {self.first} {counted}"
+
+
+def build_checked_controller(
+    loaded: LoadedScenario, settings: RunSettings, robot: Robot, wrap_solver: Any
+) -> Any:
+    """The run's controller, its solver handles passed through ``wrap_solver`` when given."""
+    if wrap_solver is None:
+        return build_controller(loaded, settings, robot)
+    return build_controller(loaded, settings, robot, context_cls=WrappingContext, wrap=wrap_solver)
+
+
 def prepare_model(robot: Robot, loaded: LoadedScenario) -> mujoco.MjModel:
     """A copy of the robot's MuJoCo model with the scenario's simulation settings applied."""
     sim = loaded.spec.sim
@@ -193,8 +233,15 @@ def run_closed_loop(
     robot: Robot | None = None,
     progress: Callable[[int, int], None] | None = None,
     on_step: Callable[[RobotState, ControlOutput], None] | None = None,
+    wrap_solver: Callable[[Any], Any] | None = None,
+    check: Callable[[ControlOutput], str] | None = None,
 ) -> RunResult:
     """Simulate one scenario with one controller and solver; never raises for a failed QP.
+
+    ``wrap_solver`` wraps every solver handle the controller makes; ``check(out)`` runs after
+    each successful step (outside the controller's timed stages) and may return a message that
+    marks the tick failed like a failed QP: the previous torque is held, and a run with such
+    ticks ends ``failed`` with that message (see :meth:`Rejections.outcome`).
 
     Velocity-level controllers and kinematic scenarios run without physics
     (:func:`wbcbench.sim.kinematic.run_kinematic`).
@@ -202,7 +249,15 @@ def run_closed_loop(
     if controller_class(settings.controller).kind == "velocity" or loaded.spec.kind == "kinematic":
         from wbcbench.sim.kinematic import run_kinematic  # it imports this module
 
-        return run_kinematic(loaded, settings, robot=robot, progress=progress, on_step=on_step)
+        return run_kinematic(
+            loaded,
+            settings,
+            robot=robot,
+            progress=progress,
+            on_step=on_step,
+            wrap_solver=wrap_solver,
+            check=check,
+        )
     spec = loaded.spec
     robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
     check_against_robot(loaded, robot)
@@ -214,7 +269,7 @@ def run_closed_loop(
     data.qvel[:] = qvel
     mujoco.mj_forward(model, data)
 
-    controller = build_controller(loaded, settings, robot)
+    controller = build_checked_controller(loaded, settings, robot, wrap_solver)
     contacts = controller.ctx.contacts
     tau_max = controller.ctx.tau_max
     frames = [c.frame for c in contacts]
@@ -231,6 +286,7 @@ def run_closed_loop(
     failures = consecutive = 0
     status, message = "ok", ""
     compensate = spec.sim.friction_compensation and spec.sim.joint_friction
+    rejections = Rejections()
     wall0 = time.perf_counter()
     tick = 0
     try:
@@ -243,7 +299,11 @@ def run_closed_loop(
             out = controller.step(state, t)
             if on_step is not None:
                 on_step(state, out)
-            if out.ok:
+            rejected = check(out) if check is not None else ""
+            rejected = rejected if out.ok else ""  # a failed step is a failed tick already
+            if rejected:
+                rejections.add(t, rejected)
+            if out.ok and not rejected:
                 tau = out.tau
                 consecutive = 0
             else:
@@ -253,7 +313,7 @@ def run_closed_loop(
                 if consecutive >= spec.sim.max_consecutive_failures:
                     status, message = (
                         "failed",
-                        f"{consecutive} failed ticks in a row: {out.message}",
+                        f"{consecutive} failed ticks in a row: {rejected or out.message}",
                     )
             last_tau = tau
             applied = tau + friction_torque(robot, model, v[6:]) if compensate else tau
@@ -262,6 +322,8 @@ def run_closed_loop(
                 mujoco.mj_step(model, data)
 
             row = output_row(t, out, task_parts)
+            if rejected:
+                row["ok"] = 0.0
             for j, name in enumerate(robot.joint_names):
                 row[f"tau.{name}"] = tau[j]
             sim_w = sensor.wrenches(data)
@@ -289,6 +351,7 @@ def run_closed_loop(
     finally:
         controller.close()  # stop parameter workers however the run ends
 
+    status, message = rejections.outcome(status, message, tick + 1)
     return RunResult(
         status=status,
         message=message,

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -35,8 +36,14 @@ from wbcbench.scenarios.load import (
     LoadedScenario,
     check_against_robot,
 )
-from wbcbench.sim.closed_loop import RunLog, RunResult, RunSettings, output_row
-from wbcbench.sim.setup import build_controller
+from wbcbench.sim.closed_loop import (
+    Rejections,
+    RunLog,
+    RunResult,
+    RunSettings,
+    build_checked_controller,
+    output_row,
+)
 
 
 def run_kinematic(
@@ -46,6 +53,8 @@ def run_kinematic(
     progress: Callable[[int, int], None] | None = None,
     on_step: Callable[[RobotState, ControlOutput], None] | None = None,
     mj_data: mujoco.MjData | None = None,
+    wrap_solver: Callable[[Any], Any] | None = None,
+    check: Callable[[ControlOutput], str] | None = None,
 ) -> RunResult:
     """Run one kinematic scenario with a velocity-level controller; never raises for a failed tick.
 
@@ -57,6 +66,7 @@ def run_kinematic(
         progress: called with (ticks done, total) after each tick.
         on_step: called with each tick's state and output.
         mj_data: a MuJoCo data of the robot's model to set ``qpos`` in each tick (visualisation).
+        wrap_solver, check: as in :func:`wbcbench.sim.closed_loop.run_closed_loop`.
 
     Raises:
         WbcBenchError: the controller does not apply to the scenario (``applies_to``), e.g. a
@@ -68,7 +78,7 @@ def run_kinematic(
     reason = controller_class(settings.controller).applies_to(spec)
     if reason:
         raise WbcBenchError(f"{loaded.path}: {reason}")
-    controller = build_controller(loaded, settings, robot)
+    controller = build_checked_controller(loaded, settings, robot, wrap_solver)
     contacts = controller.ctx.contacts
 
     model = robot.pin_model
@@ -83,6 +93,7 @@ def run_kinematic(
     failures = consecutive = 0
     status, message = "ok", ""
     contact_p0: list[np.ndarray] = []
+    rejections = Rejections()
     wall0 = time.perf_counter()
     tick = 0
     try:
@@ -95,7 +106,11 @@ def run_kinematic(
             out = controller.step(state, t)
             if on_step is not None:
                 on_step(state, out)
-            if out.ok and out.qd is not None:
+            rejected = check(out) if check is not None else ""
+            rejected = rejected if out.ok else ""  # a failed step is a failed tick already
+            if rejected:
+                rejections.add(t, rejected)
+            if out.ok and out.qd is not None and not rejected:
                 qd = out.qd
                 consecutive = 0
             else:
@@ -105,10 +120,12 @@ def run_kinematic(
                 if consecutive >= spec.sim.max_consecutive_failures:
                     status, message = (
                         "failed",
-                        f"{consecutive} failed ticks in a row: {out.message}",
+                        f"{consecutive} failed ticks in a row: {rejected or out.message}",
                     )
 
             row = output_row(t, out, task_parts)
+            if rejected:
+                row["ok"] = 0.0
             row["base_z"] = float(q[2])
             row["com.x"], row["com.y"], row["com.z"] = (float(x) for x in state.com)
             joints = q[7:]
@@ -139,6 +156,7 @@ def run_kinematic(
     finally:
         controller.close()
 
+    status, message = rejections.outcome(status, message, tick + 1)
     return RunResult(
         status=status,
         message=message,

@@ -14,14 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from wbcbench.controllers.base import ControllerContext, ControlOutput
+from wbcbench.controllers.base import ControlOutput
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.loader import Robot, load_robot
 from wbcbench.scenarios.load import (
     LoadedScenario,
 )
 from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
-from wbcbench.sim.setup import build_controller
+from wbcbench.sim.setup import WrappingContext, build_controller
 
 
 @dataclass
@@ -72,17 +72,6 @@ def record_states(
 
 
 @dataclass
-class _WrappingContext(ControllerContext):
-    """A context whose solver handles pass through ``wrap`` (e.g. to record their solutions)."""
-
-    wrap: Callable[[Any], Any] | None = None
-
-    def new_solver(self) -> Any:
-        handle = super().new_solver()
-        return self.wrap(handle) if self.wrap is not None else handle
-
-
-@dataclass
 class ReplayTimings:
     """Per-tick stage timings [s] of one controller × solver on a recording."""
 
@@ -117,7 +106,7 @@ def replay(
         loaded,
         settings,
         robot,
-        context_cls=_WrappingContext,
+        context_cls=WrappingContext,
         keep_problems=keep_problems,
         wrap=wrap_solver,
     )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from wbcbench.controllers.base import Controller, ControllerContext
@@ -16,6 +18,17 @@ from wbcbench.scenarios.load import (
     torque_limits,
 )
 from wbcbench.tasks.collision import Box
+
+
+@dataclass
+class WrappingContext(ControllerContext):
+    """A context whose solver handles pass through ``wrap`` (e.g. to record their solutions)."""
+
+    wrap: Callable[[Any], Any] | None = None
+
+    def new_solver(self) -> Any:
+        handle = super().new_solver()
+        return self.wrap(handle) if self.wrap is not None else handle
 
 
 def scenario_obstacles(loaded: LoadedScenario) -> list[Box]:
