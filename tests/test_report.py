@@ -110,3 +110,149 @@ def test_figures_are_written_as_png_and_svg(smoke: Path) -> None:
     for stem in ("tracking_tocabi_stand_sway", "levels", "solvers_success", "rqr_fig1"):
         assert f"{stem}.png" in names and f"{stem}.svg" in names
     assert all(p.stat().st_size > 1000 for p in paths)
+
+
+def _timing_row(rid: str, scenario: str, controller: str, **extra: object) -> dict:
+    row = dict(
+        run_id=rid,
+        scenario=scenario,
+        robot="tocabi_like",
+        controller=controller,
+        controller_config="{}",
+        solver="osqp",
+        mode="hot",
+        status="ok",
+        kind="timing",
+        settings='{"kind": "timing", "recorder": "lqp"}',
+    )
+    row.update(extra)
+    return row
+
+
+def _stages(rid: str, **values: float) -> list[dict]:
+    return [
+        dict(run_id=rid, task="*", metric=f"t_{name}_us", value=value, unit="us")
+        for name, value in values.items()
+    ]
+
+
+def test_rc_lqp_table3_has_both_supports_every_column_and_the_ratios(tmp_path: Path) -> None:
+    """Synthetic rows: the lqp-recorded runs win over a qp_wbc-recorded decoy."""
+    store = ResultsStore(tmp_path)
+    for support in ("double", "single"):
+        scenario = f"ahn_{support}_support"
+        store.add_run(
+            _timing_row(f"{support}-lqp", scenario, "lqp"),
+            _stages(f"{support}-lqp", total_mean=3000.0, total_max=6000.0, dynamics_mean=100.0),
+        )
+        store.add_run(
+            _timing_row(f"{support}-rc", scenario, "rc_lqp"),
+            _stages(
+                f"{support}-rc",
+                total_mean=1500.0,
+                total_max=2000.0,
+                dynamics_mean=100.0,
+                reduced_mean=20.0,
+                lqp1_mean=600.0,
+                lqp2_mean=300.0,
+            ),
+        )
+    decoy = _timing_row("decoy", "ahn_single_support", "rc_lqp", settings='{"recorder": "qp_wbc"}')
+    store.add_run(decoy, _stages("decoy", total_mean=1.0, total_max=1.0))
+    table = TABLES["rc_lqp_table3"](load_results(tmp_path))
+    assert table.frame is not None
+    frame = table.frame.set_index(["support", "method"])
+    prop = frame.loc[("double", "proposed (rc_lqp)")]
+    assert prop["ours avg [µs]"] == 1500.0 and prop["paper avg [µs]"] == 981
+    assert prop["ours max [µs]"] == 2000.0 and prop["paper max [µs]"] == 1203
+    assert prop["ours dyn [µs]"] == 120.0 and prop["paper dyn [µs]"] == 34
+    assert prop["ours LQP1 [µs]"] == 600.0 and prop["paper LQP1 [µs]"] == 579
+    assert prop["ours LQP2 [µs]"] == 300.0 and prop["paper LQP2 [µs]"] == 273
+    conv = frame.loc[("single", "conventional (lqp)")]
+    assert conv["ours avg [µs]"] == 3000.0 and conv["paper avg [µs]"] == 1834
+    assert pd.isna(conv["ours LQP1 [µs]"])
+    assert frame.loc[("single", "proposed (rc_lqp)"), "ours avg [µs]"] == 1500.0  # not the decoy
+    for support in ("double", "single"):
+        ratio = frame.loc[(support, "ratio lqp / rc_lqp")]
+        assert ratio["ours avg [µs]"] == pytest.approx(2.0)
+        assert ratio["ours max [µs]"] == pytest.approx(3.0)
+    assert frame.loc[("double", "ratio lqp / rc_lqp"), "paper avg [µs]"] == pytest.approx(
+        2176 / 981
+    )
+    assert frame.loc[("single", "ratio lqp / rc_lqp"), "paper max [µs]"] == pytest.approx(
+        2119 / 811
+    )
+
+
+def test_rc_lqp_dof_table_has_one_row_per_robot_with_both_medians(tmp_path: Path) -> None:
+    store = ResultsStore(tmp_path)
+    medians = {"tocabi_dof20": (800.0, 400.0), "tocabi_dof45": (4000.0, 1000.0)}
+    for robot, (conv, prop) in medians.items():
+        for controller, value in (("lqp", conv), ("rc_lqp", prop)):
+            rid = f"{robot}-{controller}"
+            row = _timing_row(rid, "ahn_dof_scaling", controller, robot=robot)
+            store.add_run(row, _stages(rid, total_median=value))
+    failed = _timing_row(
+        "fail", "ahn_dof_scaling", "lqp", robot="tocabi_dof29", status="failed", message="boom"
+    )
+    store.add_run(failed, _stages("fail", total_median=2000.0))
+    table = TABLES["rc_lqp_dof"](load_results(tmp_path))
+    assert table.frame is not None
+    frame = table.frame.set_index("DoF")
+    assert list(frame.index) == [20, 29, 45]
+    assert frame.loc[20, "ours lqp median [µs]"] == 800.0
+    assert frame.loc[45, "ours rc_lqp median [µs]"] == 1000.0
+    assert frame.loc[20, "ours ratio"] == pytest.approx(2.0)
+    assert frame.loc[45, "ours ratio"] == pytest.approx(4.0)
+    assert frame.loc[20, "paper ratio"] == pytest.approx(754 / 571)
+    assert frame.loc[45, "paper ratio"] == pytest.approx(4081 / 1319)
+    assert frame.loc[20, "status"] == "ok"
+    assert frame.loc[29, "status"].startswith("lqp: failed") and "boom" in frame.loc[29, "status"]
+    assert pd.isna(frame.loc[29, "ours ratio"])
+
+
+def test_to_osf_s2_ratio_of_total_amendments_with_the_run_status(tmp_path: Path) -> None:
+    """Priority weighting amends 3 per tick, identical 0.5; the identical run fell at 10 s."""
+    import numpy as np
+
+    from wbcbench.scenarios.load import load_scenario
+
+    loaded = load_scenario("lee2021access_s2_feasibility")
+    store = ResultsStore(tmp_path)
+    store.record_scenario(loaded.name, loaded.hash, str(loaded.path))
+    for rid, config, amend, end, status in (
+        ("prio", "{}", 1.5, 19.0, "ok"),
+        ("ident", '{"weights": [10000000.0]}', 0.25, 10.0, "fell"),
+    ):
+        t = np.arange(0.0, end, 0.005)
+        log = {"t": t, "diag.amend.com": np.full(t.size, amend)}
+        log["diag.amend.r_hand_pos"] = np.where(t >= 9.0, amend, 100.0)
+        row = dict(
+            run_id=rid,
+            scenario=loaded.name,
+            scenario_hash=loaded.hash,
+            controller="to_osf",
+            controller_config=config,
+            solver="proxqp",
+            mode="cold",
+            status=status,
+            message="base height 0.3 m at t = 10.000 s" if status == "fell" else "",
+            sim_duration_s=end,
+            kind="tracking",
+        )
+        store.add_run(row, [], log)
+    shortened = dict(row, run_id="short", status="ok", scenario_hash="other", sim_duration_s=0.5)
+    store.add_run(shortened, [], {"t": np.zeros(1), "diag.amend.com": np.ones(1)})
+    table = TABLES["to_osf_s2"](load_results(tmp_path))
+    assert table.frame is not None
+    first = table.frame.iloc[0]
+    assert first["priority weighting"] == pytest.approx(3.0)
+    assert first["identical weighting"] == pytest.approx(0.5)
+    assert first["ours priority / identical"] == pytest.approx(6.0)
+    assert first["paper priority / identical"] == 7.5
+    assert first["status (priority; identical)"] == (
+        "ok; fell after 10 s: base height 0.3 m at t = 10.000 s"
+    )
+    notes = " ".join(table.notes)
+    assert "a run stopped before the window's end" in notes
+    assert "identical [10000000.0]" in notes
