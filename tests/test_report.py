@@ -256,3 +256,31 @@ def test_to_osf_s2_ratio_of_total_amendments_with_the_run_status(tmp_path: Path)
     notes = " ".join(table.notes)
     assert "a run stopped before the window's end" in notes
     assert "identical [10000000.0]" in notes
+
+
+def test_to_osf_table3_has_one_row_per_task_count_from_the_runs_overrides(tmp_path: Path) -> None:
+    """Timing rows of the first task only (an override in their settings) and of all five."""
+    store = ResultsStore(tmp_path)
+    one = '{"overrides": ["tasks=[{name: com, type: com, priority: 1}]"], "recorder": "qp_wbc"}'
+    for rid, controller, settings, total in (
+        ("hqp-1", "hqp", one, 900.0),
+        ("to_osf-1", "to_osf", one, 300.0),
+        ("hqp-5", "hqp", "{}", 4000.0),
+        ("to_osf-5", "to_osf", "{}", 1000.0),
+    ):
+        row = _timing_row(
+            rid,
+            "lee2021access_table3",
+            controller,
+            solver="proxqp",
+            settings=settings,
+            scenario_hash=rid[-1],
+        )
+        store.add_run(row, _stages(rid, total_mean=total))
+    table = TABLES["to_osf_table3"](load_results(tmp_path))
+    assert table.frame is not None
+    frame = table.frame.set_index("tasks")
+    assert list(frame.index) == [1, 5]
+    assert frame.loc[1, "ours hqp [ms]"] == pytest.approx(0.9)
+    assert frame.loc[1, "ours HQP / TO-OSF"] == pytest.approx(3.0)
+    assert frame.loc[5, "ours HQP / TO-OSF"] == pytest.approx(4.0)

@@ -247,6 +247,8 @@ def test_robots_run_a_scenario_once_per_robot_each_its_own_hash_and_recording(
     ]
     assert len({j.loaded.hash for j in p.jobs}) == 3
     assert {j.options["recorder"] for j in p.jobs} == {"lqp"}
+    # the row's settings keep the overrides, so a report can rebuild each run's scenario
+    assert p.jobs[-1].extra["overrides"] == ["robot=tocabi_dof45"]
     ids = {run_id(j.loaded, j.settings, "v", extra=j.extra) for j in p.jobs}
     assert len(ids) == 6  # resume tells every robot's rows apart
     # one recording per robot: the cache key is the scenario hash

@@ -489,6 +489,8 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                 if isinstance(matrix, TimingSpec):
                     options = _timing_options(matrix, loaded, file, key)
                     timing_opts[f"{loaded.name}@{loaded.hash}"] = options
+                    if overrides:  # in the row's settings, so a report can rebuild the scenario
+                        options = {**options, "overrides": list(overrides)}
                 elif isinstance(matrix, TrackingSpec):
                     options = dict(check_tol=matrix.check_tol)
                     if matrix.log_every != 1:

@@ -100,12 +100,36 @@ def _pick_timing(
 
     ranks: list[Any] = [rank(r) for _, r in runs.iterrows()]
     runs = runs.assign(_rank=ranks)
+    if "scenario_hash" not in runs.columns:
+        runs = runs.assign(scenario_hash="")
     if "robot" not in runs.columns:
         runs = runs.assign(robot="")
     runs = runs.sort_values("_rank", kind="stable")
-    return runs.drop_duplicates(["scenario", "robot", "controller", "controller_config"]).drop(
-        columns="_rank"
-    )
+    key = ["scenario", "scenario_hash", "robot", "controller", "controller_config"]
+    return runs.drop_duplicates(key).drop(columns="_rank")
+
+
+@cache
+def _spec_with(file: str, overrides: tuple[str, ...]) -> Any:
+    from wbcbench.scenarios.load import load_scenario
+
+    try:
+        return load_scenario(file, list(overrides)).spec
+    except Exception:  # a scenario file since removed, renamed or changed
+        return None
+
+
+def run_spec(res: Results, row: pd.Series) -> Any:
+    """The scenario a run used: its file with the overrides a timing row records."""
+    try:
+        overrides = tuple(json.loads(str(row.get("settings") or "{}")).get("overrides", []))
+    except ValueError:
+        overrides = ()
+    if not overrides:
+        return scenario_spec(res, str(row["scenario"]))
+    info = res.provenance.get("scenarios", {}).get(str(row["scenario"]), {})
+    file = info.get("file") or str(row["scenario"])
+    return _spec_with(file if Path(file).exists() else str(row["scenario"]), overrides)
 
 
 @cache
@@ -508,7 +532,7 @@ def to_osf_s4(res: Results) -> PaperTable:
         return t
     rows = []
     for _, r in runs.iterrows():
-        spec = scenario_spec(res, r["scenario"])
+        spec = run_spec(res, r)
         row: dict[str, Any] = {
             "scenario": r["scenario"],
             "contact DoF": 6 * len(spec.contacts) if spec else np.nan,
@@ -518,7 +542,7 @@ def to_osf_s4(res: Results) -> PaperTable:
         for stage in _stages(res, r["run_id"]):
             row[f"{stage} mean [ms]"] = _ms(_metric(res, r["run_id"], f"t_{stage}_mean_us"))
         rows.append(row)
-    t.frame = pd.DataFrame(rows)
+    t.frame = pd.DataFrame(rows).sort_values(["contact DoF", "tasks"], kind="stable")
     t.notes = [
         "Paper: RT-thread QP < 0.5 ms up to 24 contact DoF; non-RT parameters < 2 ms (Fig. 14).",
         _machines(res, "to_osf"),
@@ -549,7 +573,8 @@ def to_osf_cod_svd(res: Results) -> PaperTable:
         return t
     svd = runs[[_has(r, "svd") for _, r in runs.iterrows()]]
     cod = runs[[not _has(r, "svd") and not _has(r, "pinv") for _, r in runs.iterrows()]]
-    cod = cod[cod["scenario"].isin(svd["scenario"])]
+    same = "scenario_hash" if "scenario_hash" in runs.columns else "scenario"
+    cod = cod[cod[same].isin(svd[same])]  # the same scenario, tasks and contacts
     if svd.empty or cod.empty:
         t.missing = (
             "Needs timing of `to_osf` with the default (COD) and an SVD inverse config on one "
@@ -601,7 +626,7 @@ def to_osf_table3(res: Results) -> PaperTable:
         return t
     rows: dict[int, dict[str, Any]] = {}
     for _, r in runs.iterrows():
-        spec = scenario_spec(res, r["scenario"])
+        spec = run_spec(res, r)
         n = len(spec.tasks) if spec else -1
         row = rows.setdefault(n, {"tasks": n, "paper HQP [ms]": None, "paper TO-OSF [ms]": None})
         row[f"ours {r['controller']} [ms]"] = _ms(_metric(res, r["run_id"], "t_total_mean_us"))
