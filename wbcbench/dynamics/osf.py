@@ -43,6 +43,7 @@ from typing import Literal
 import numpy as np
 from scipy.linalg import lapack
 
+from wbcbench.dynamics.dense import symmetric_from_upper, upper
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.tasks.tasks import Task
@@ -85,7 +86,7 @@ def _spd_inverse(A: np.ndarray) -> np.ndarray:
     inv, info = lapack.dpotri(_spd_factor(A), lower=0)
     if info != 0:
         raise np.linalg.LinAlgError(f"Cholesky inverse failed (info {info})")
-    return np.triu(inv) + np.triu(inv, 1).T
+    return symmetric_from_upper(inv)
 
 
 # -- decompositions -------------------------------------------------------------------------------
@@ -128,7 +129,7 @@ def cod(Y: np.ndarray, rcond: float = 1e-9) -> Decomposition:
     # Y is wide here (k ≤ n): the first k columns hold the k reflectors of Q
     q_full, _, _ = lapack.dorgqr(qr[:, :k], tau)
     q1, q2 = q_full[:, :r], q_full[:, r:]
-    trap = np.triu(qr[:r, :])  # (r, n) = [R11 R12]
+    trap = upper(qr[:r, :])  # (r, n) = [R11 R12]
     z, t = np.linalg.qr(trap.T, mode="complete")  # (n, n), (n, r)
     perm = jpvt - 1
     v = np.empty_like(z)
