@@ -117,6 +117,21 @@ class Decomposition:
     rank: int
 
 
+def _complete_qr(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A = Q [R; 0] for a tall (m, r) A: the full orthogonal Q (m, m) and R (r, r)."""
+    m, r = A.shape
+    qr, tau, _, info = lapack.dgeqrf(A)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"QR failed (info {info})")
+    R = upper(qr[:r, :])
+    reflectors = np.zeros((m, m))
+    reflectors[:, :r] = qr
+    q, _, info = lapack.dorgqr(reflectors, tau)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"QR failed (info {info})")
+    return np.asarray(q), R
+
+
 def cod(Y: np.ndarray, rcond: float = 1e-9) -> Decomposition:
     """Complete orthogonal decomposition Y = Q [T 0; 0 0] Vᵀ (TO-OSF eq. 16–17).
 
@@ -130,13 +145,13 @@ def cod(Y: np.ndarray, rcond: float = 1e-9) -> Decomposition:
     q_full, _, _ = lapack.dorgqr(qr[:, :k], tau)
     q1, q2 = q_full[:, :r], q_full[:, r:]
     trap = upper(qr[:r, :])  # (r, n) = [R11 R12]
-    z, t = np.linalg.qr(trap.T, mode="complete")  # (n, n), (n, r)
+    z, t = _complete_qr(trap.T)  # (n, n), (r, r)
     perm = jpvt - 1
     v = np.empty_like(z)
     v[perm] = z  # P Z
     v1, v2 = v[:, :r], v[:, r:]
     # Y† = V₁ T'⁻ᵀ Q₁ᵀ  (T' = t[:r] upper triangular)
-    tinv_q1t = _tri_solve(t[:r], q1.T, trans=True)
+    tinv_q1t = _tri_solve(t, q1.T, trans=True)
     return Decomposition(pinv=v1 @ tinv_q1t, right_null=v2, left_null=q2, rank=r)
 
 
