@@ -118,8 +118,9 @@ class OsfHqp(OsfControllerBase):
             bounds[0] -= tol
             bounds[1] += tol
             lb = ub = None
-            if self._box_free[i] is not None:
-                lb, ub = self._box_free[i].copy()
+            box = self._box_free[i]
+            if box is not None:
+                lb, ub = box.copy()
                 bound = self.acc_bound[i]
                 lb[:m] = -bound - refs[i]
                 ub[:m] = bound - refs[i]
