@@ -200,7 +200,7 @@ def row_space_and_null_space(E: Array, tol: float = RANK_TOL) -> tuple[Array, Ar
     pivoted Householder QR of Eᵀ.
     """
     n = E.shape[1]
-    if E.shape[0] == 0:
+    if E.shape[0] == 0 or n == 0:  # (LAPACK rejects an empty factorisation)
         return np.zeros((0, n)), np.eye(n)
     Q, R, _ = _qr_pivoted(E.T)
     diag = np.abs(np.diag(R))
