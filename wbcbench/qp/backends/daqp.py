@@ -161,11 +161,11 @@ class DAQPSolver(QPSolver):
         x, fval, flag, info = out
         status = _STATUS.get(int(flag), SolutionStatus.FAILED)
         has_x = status in (SolutionStatus.SOLVED, SolutionStatus.MAX_ITER)
-        lam = np.array(info["lam"]) if has_x else None
+        lam = np.asarray(info["lam"]) if has_x else None  # DAQP returns fresh arrays
         k = problem.n if problem.has_box else 0
         return Solution(
             status=status,
-            x=np.array(x) if has_x else None,
+            x=np.asarray(x) if has_x else None,
             y=None if lam is None else lam[k : k + problem.n_eq],
             z=None if lam is None else lam[k + problem.n_eq :],
             z_box=None if lam is None or not problem.has_box else lam[:k],
