@@ -43,7 +43,21 @@ from typing import Literal
 import numpy as np
 from scipy.linalg import lapack
 
-from wbcbench.dynamics.dense import symmetric_from_upper, upper
+from wbcbench.dynamics.dense import (
+    spd_factor as _spd_factor,
+)
+from wbcbench.dynamics.dense import (
+    spd_inverse as _spd_inverse,
+)
+from wbcbench.dynamics.dense import (
+    spd_solve_factored as _spd_solve,
+)
+from wbcbench.dynamics.dense import (
+    tri_solve as _tri_solve,
+)
+from wbcbench.dynamics.dense import (
+    upper,
+)
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.tasks.tasks import Task
@@ -52,41 +66,6 @@ Inverse = Literal["cod", "svd", "pinv"]
 Coupling = Literal["exact", "literal"]
 INVERSES: tuple[str, ...] = ("cod", "svd", "pinv")
 COUPLINGS: tuple[str, ...] = ("exact", "literal")
-
-
-# -- small dense kernels (LAPACK directly: scipy's wrappers add tens of µs on these sizes) -------
-
-
-def _tri_solve(T: np.ndarray, B: np.ndarray, trans: bool = False) -> np.ndarray:
-    """Solve T X = B (or Tᵀ X = B) with T upper triangular and non-singular."""
-    x, info = lapack.dtrtrs(T, B, lower=0, trans=1 if trans else 0)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"triangular solve failed (info {info})")
-    return np.asarray(x)
-
-
-def _spd_factor(A: np.ndarray) -> np.ndarray:
-    """Upper Cholesky factor U of a symmetric positive definite A = Uᵀ U."""
-    u, info = lapack.dpotrf(A, lower=0, clean=1)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"matrix not positive definite (info {info})")
-    return np.asarray(u)
-
-
-def _spd_solve(U: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """A⁻¹ B from the upper Cholesky factor of A."""
-    x, info = lapack.dpotrs(U, B, lower=0)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"Cholesky solve failed (info {info})")
-    return np.asarray(x)
-
-
-def _spd_inverse(A: np.ndarray) -> np.ndarray:
-    """Inverse of a symmetric positive definite matrix (Cholesky)."""
-    inv, info = lapack.dpotri(_spd_factor(A), lower=0)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"Cholesky inverse failed (info {info})")
-    return symmetric_from_upper(inv)
 
 
 # -- decompositions -------------------------------------------------------------------------------
