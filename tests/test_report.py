@@ -284,3 +284,34 @@ def test_to_osf_table3_has_one_row_per_task_count_from_the_runs_overrides(tmp_pa
     assert frame.loc[1, "ours hqp [ms]"] == pytest.approx(0.9)
     assert frame.loc[1, "ours HQP / TO-OSF"] == pytest.approx(3.0)
     assert frame.loc[5, "ours HQP / TO-OSF"] == pytest.approx(4.0)
+
+
+def test_to_osf_s2_recognises_the_identical_weighting_config(tmp_path: Path) -> None:
+    import numpy as np
+
+    from wbcbench.scenarios.load import load_scenario
+
+    loaded = load_scenario("lee2021access_s2_feasibility")
+    store = ResultsStore(tmp_path)
+    store.record_scenario(loaded.name, loaded.hash, str(loaded.path))
+    for rid, config, amend in (("p", "{}", 2.0), ("i", '{"weighting": "identical"}', 0.5)):
+        t = np.arange(0.0, 19.0, 0.01)
+        row = dict(
+            run_id=rid,
+            scenario=loaded.name,
+            scenario_hash=loaded.hash,
+            controller="to_osf",
+            controller_config=config,
+            solver="proxqp",
+            mode="cold",
+            status="ok",
+            sim_duration_s=19.0,
+            kind="tracking",
+        )
+        store.add_run(row, [], {"t": t, "diag.amend.com": np.full(t.size, amend)})
+    table = TABLES["to_osf_s2"](load_results(tmp_path))
+    assert table.frame is not None
+    assert table.frame.iloc[0]["ours priority / identical"] == pytest.approx(4.0)
+    assert table.frame.iloc[0]["status (priority; identical)"] == "ok; ok"
+    assert "identical [10000000.0]" in " ".join(table.notes)
+    assert "t = 9–19 s (the paper's window)" in " ".join(table.notes)

@@ -61,6 +61,18 @@ class OsfHqp(OsfControllerBase):
         self.final_solver = ctx.new_solver()
         Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
         self.WtW = Wc.T @ Wc
+        self._diagonals: dict[tuple[int, int], np.ndarray] = {}
+        # the box of a level with acceleration bounds: (2, m + p) with the wrench part free,
+        # None for a level without (its size p is known once the parameters are)
+        self._box_free: list[np.ndarray | None] = []
+
+    def _hessian(self, m: int, p: int) -> np.ndarray:
+        """diag(1 (m), ε (p)): the level's slack norm and the wrench regularization."""
+        d = self._diagonals.get((m, p))
+        if d is None:
+            d = np.concatenate([np.ones(m), np.full(p, self.config.regularization)])
+            self._diagonals[(m, p)] = d
+        return np.diag(d)  # a fresh array: some backends write into what they are given
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         timer = StageTimer(state)
@@ -73,30 +85,56 @@ class OsfHqp(OsfControllerBase):
         cw_f0 = self.Cw @ p.f0 if self.nc else np.zeros(0)
         CwF = self.Cw @ p.F if self.nc else np.zeros((0, k))
         CwQ = self.Cw @ p.Qf if self.nc else np.zeros((0, np_))
+        if len(self._box_free) != len(p.levels):
+            self._box_free = [
+                np.array([np.full(lv.dim + np_, -np.inf), np.full(lv.dim + np_, np.inf)])
+                if np.isfinite(bound).any()
+                else None
+                for lv, bound in zip(p.levels, self.acc_bound, strict=True)
+            ]
         tau = np.zeros(k)
         partial: list[np.ndarray] = []
         problems: list[Problem] = []
         diagnostics = self.base_diagnostics(read)
+        nw = self.Cw.shape[0]
         for i, lv in enumerate(p.levels):
             m = lv.dim
             base = p.level_step(i, tau, refs[i])  # Γ_{≤l} with w_l = 0
             E = lv.E
             nx = m + np_
-            H = np.zeros((nx, nx))
-            H[np.arange(m), np.arange(m)] = 1.0
-            H[np.arange(m, nx), np.arange(m, nx)] = cfg.regularization
-            C = np.vstack([np.hstack([E, p.Yc]), np.hstack([CwF @ E, CwQ])])
-            cwb = cw_f0 + CwF @ base
+            C = np.empty((k + nw, nx))  # [E Y_c; C_w F E  C_w Q_f]
+            C[:k, :m] = E
+            C[:k, m:] = p.Yc
+            np.matmul(CwF, E, out=C[k:, :m])
+            C[k:, m:] = CwQ
+            bounds = np.empty((2, k + nw))
+            bounds[0, :k] = -tau_max - base
+            bounds[1, :k] = tau_max - base
+            if nw:
+                cwb = cw_f0 + CwF @ base
+                bounds[0, k:] = self.lw - cwb
+                bounds[1, k:] = self.uw - cwb
             tol = cfg.carry_tolerance * i
-            lower = np.concatenate([-tau_max - base, self.lw - cwb]) - tol
-            upper = np.concatenate([tau_max - base, self.uw - cwb]) + tol
-            bound = self.acc_bound[i]
+            bounds[0] -= tol
+            bounds[1] += tol
             lb = ub = None
-            if np.isfinite(bound).any():
-                lb = np.concatenate([-bound - refs[i], np.full(np_, -np.inf)])
-                ub = np.concatenate([bound - refs[i], np.full(np_, np.inf)])
+            box = self._box_free[i]
+            if box is not None:
+                lb, ub = box.copy()
+                bound = self.acc_bound[i]
+                lb[:m] = -bound - refs[i]
+                ub[:m] = bound - refs[i]
             name = f"T{i + 1}"
-            problem = Problem(H, np.zeros(nx), C=C, l=lower, u=upper, lb=lb, ub=ub, name=name)
+            problem = Problem(
+                self._hessian(m, np_),
+                np.zeros(nx),
+                C=C,
+                l=bounds[0],
+                u=bounds[1],
+                lb=lb,
+                ub=ub,
+                name=name,
+            )
             problems.append(problem)
             sol = self.solvers[i].solve(problem)
             timer.add_solution(sol, f"T{i + 1}")

@@ -223,6 +223,11 @@ class ToOsfConfig(OsfBaseConfig):
         [1e7],
         description="H per task priority (1 first; the last repeats for lower priorities)",
     )
+    weighting: Literal["priority", "identical"] = Field(
+        "priority",
+        description="priority: H from `weights` by task priority; identical: every task weighted "
+        "by the first of `weights` (TO-OSF §IV-B3)",
+    )
     wrench_weight: float = Field(1.0, ge=0, description="H_w of ‖S_f f‖² (tangential + moments)")
     wrench_cost: Literal["total", "internal"] = Field(
         "total", description="S_f applied to the total wrench, or to F_opt only (literal eq. 11)"
@@ -264,8 +269,9 @@ class ToOsf(OsfControllerBase):
         rho_ref = np.concatenate(refs)
         nr = rho_ref.size
         nx = nr + nc
+        weights = cfg.weights[:1] if cfg.weighting == "identical" else cfg.weights
         h_task = np.concatenate(
-            [np.full(term.dim, task_weight(term, cfg.weights)) for lv in per_level for term in lv]
+            [np.full(term.dim, task_weight(term, weights)) for lv in per_level for term in lv]
         )
         scale = 1.0 / float(h_task.max())  # the same minimiser, better-scaled numbers
         # F_opt's block weighs ~H_w/H_task; it is solved for in units of σ [N] so that both

@@ -43,6 +43,21 @@ from typing import Literal
 import numpy as np
 from scipy.linalg import lapack
 
+from wbcbench.dynamics.dense import (
+    spd_factor as _spd_factor,
+)
+from wbcbench.dynamics.dense import (
+    spd_inverse as _spd_inverse,
+)
+from wbcbench.dynamics.dense import (
+    spd_solve_factored as _spd_solve,
+)
+from wbcbench.dynamics.dense import (
+    tri_solve as _tri_solve,
+)
+from wbcbench.dynamics.dense import (
+    upper,
+)
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.tasks.tasks import Task
@@ -51,41 +66,6 @@ Inverse = Literal["cod", "svd", "pinv"]
 Coupling = Literal["exact", "literal"]
 INVERSES: tuple[str, ...] = ("cod", "svd", "pinv")
 COUPLINGS: tuple[str, ...] = ("exact", "literal")
-
-
-# -- small dense kernels (LAPACK directly: scipy's wrappers add tens of µs on these sizes) -------
-
-
-def _tri_solve(T: np.ndarray, B: np.ndarray, trans: bool = False) -> np.ndarray:
-    """Solve T X = B (or Tᵀ X = B) with T upper triangular and non-singular."""
-    x, info = lapack.dtrtrs(T, B, lower=0, trans=1 if trans else 0)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"triangular solve failed (info {info})")
-    return np.asarray(x)
-
-
-def _spd_factor(A: np.ndarray) -> np.ndarray:
-    """Upper Cholesky factor U of a symmetric positive definite A = Uᵀ U."""
-    u, info = lapack.dpotrf(A, lower=0, clean=1)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"matrix not positive definite (info {info})")
-    return np.asarray(u)
-
-
-def _spd_solve(U: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """A⁻¹ B from the upper Cholesky factor of A."""
-    x, info = lapack.dpotrs(U, B, lower=0)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"Cholesky solve failed (info {info})")
-    return np.asarray(x)
-
-
-def _spd_inverse(A: np.ndarray) -> np.ndarray:
-    """Inverse of a symmetric positive definite matrix (Cholesky)."""
-    inv, info = lapack.dpotri(_spd_factor(A), lower=0)
-    if info != 0:
-        raise np.linalg.LinAlgError(f"Cholesky inverse failed (info {info})")
-    return np.triu(inv) + np.triu(inv, 1).T
 
 
 # -- decompositions -------------------------------------------------------------------------------
@@ -116,6 +96,21 @@ class Decomposition:
     rank: int
 
 
+def _complete_qr(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A = Q [R; 0] for a tall (m, r) A: the full orthogonal Q (m, m) and R (r, r)."""
+    m, r = A.shape
+    qr, tau, _, info = lapack.dgeqrf(A)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"QR failed (info {info})")
+    R = upper(qr[:r, :])
+    reflectors = np.zeros((m, m))
+    reflectors[:, :r] = qr
+    q, _, info = lapack.dorgqr(reflectors, tau)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"QR failed (info {info})")
+    return np.asarray(q), R
+
+
 def cod(Y: np.ndarray, rcond: float = 1e-9) -> Decomposition:
     """Complete orthogonal decomposition Y = Q [T 0; 0 0] Vᵀ (TO-OSF eq. 16–17).
 
@@ -128,14 +123,14 @@ def cod(Y: np.ndarray, rcond: float = 1e-9) -> Decomposition:
     # Y is wide here (k ≤ n): the first k columns hold the k reflectors of Q
     q_full, _, _ = lapack.dorgqr(qr[:, :k], tau)
     q1, q2 = q_full[:, :r], q_full[:, r:]
-    trap = np.triu(qr[:r, :])  # (r, n) = [R11 R12]
-    z, t = np.linalg.qr(trap.T, mode="complete")  # (n, n), (n, r)
+    trap = upper(qr[:r, :])  # (r, n) = [R11 R12]
+    z, t = _complete_qr(trap.T)  # (n, n), (r, r)
     perm = jpvt - 1
     v = np.empty_like(z)
     v[perm] = z  # P Z
     v1, v2 = v[:, :r], v[:, r:]
     # Y† = V₁ T'⁻ᵀ Q₁ᵀ  (T' = t[:r] upper triangular)
-    tinv_q1t = _tri_solve(t[:r], q1.T, trans=True)
+    tinv_q1t = _tri_solve(t, q1.T, trans=True)
     return Decomposition(pinv=v1 @ tinv_q1t, right_null=v2, left_null=q2, rank=r)
 
 

@@ -41,9 +41,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-import scipy.linalg
 
 from wbcbench.dynamics.chains import CENTROID_DIM, ChainSplit
+from wbcbench.dynamics.dense import skew, spd_inverse, spd_solve
 from wbcbench.dynamics.state import RobotState
 
 
@@ -190,13 +190,13 @@ class ReducedDynamics:
             X[:3, -1] = dh_lin
             X[3:, -1] = dh_ang
             # k about c = k about the total CoM + (C − c) × l
-            X[3:] += np.cross(com - c, X[:3], axis=0)
+            X[3:] += skew(com - c) @ X[:3]
             X[:3] = R.T @ X[:3]
             X[3:] = R.T @ X[3:]
             Ic_l = R.T @ Ic @ R
             Y6 = np.empty_like(X)
             Y6[:3] = X[:3] / m
-            Y6[3:] = np.linalg.solve(Ic_l, X[3:])
+            Y6[3:] = spd_solve(Ic_l, X[3:])
             A_G, J_G, drift = X[:, :-1], Y6[:, :-1], Y6[:, -1]
             I_G = np.zeros((6, 6))
             I_G[:3, :3] = m * np.eye(3)
@@ -211,9 +211,7 @@ class ReducedDynamics:
         Minv, h, g = state.Minv, state.h, state.g
         JMinv = J_r @ Minv  # (n_r, n)
         Lambda_inv = JMinv @ J_r.T
-        cho = scipy.linalg.cho_factor(Lambda_inv, lower=True, check_finite=False)
-        M_r = scipy.linalg.cho_solve(cho, self._eye_r, check_finite=False)
-        M_r = 0.5 * (M_r + M_r.T)
+        M_r = spd_inverse(Lambda_inv)
         proj = M_r @ (JMinv @ np.column_stack([h - g, g]))
         b_r = proj[:, 0] - M_r @ dJr_v
         g_r = proj[:, 1]

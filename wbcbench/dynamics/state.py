@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from wbcbench.dynamics.dense import symmetric_from_upper
+
 if TYPE_CHECKING:
     from wbcbench.robots.loader import Robot
 
@@ -36,7 +38,7 @@ LOCAL_WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 def _symmetrize_upper(a: np.ndarray) -> np.ndarray:
     """Pinocchio fills only the upper triangle of M and M⁻¹."""
-    return np.triu(a) + np.triu(a, 1).T
+    return symmetric_from_upper(a)
 
 
 @dataclass

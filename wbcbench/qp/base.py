@@ -129,21 +129,20 @@ class QPSolver(ABC):
         t_call = time.perf_counter()
         try:
             problem.validate()
-            guess = self._guess(problem, x0)
             if self.mode == "hot":
-                sol = self._solve_hot(problem, guess, explicit=x0 is not None)
+                sol = self._solve_hot(problem, x0)
             else:
-                sol = self._solve_fresh(problem, guess, keep=False)
+                sol = self._solve_fresh(problem, self._guess(problem, x0), keep=False)
         except Exception as exc:  # a failed row, never a crashed sweep
             self._native = None
             sol = Solution(status=SolutionStatus.FAILED, message=f"{type(exc).__name__}: {exc}")
-        if sol.success and (sol.x is None or not np.all(np.isfinite(sol.x))):
+        if sol.success and (sol.x is None or not np.isfinite(sol.x).all()):
             sol.status = SolutionStatus.NUMERICAL
             sol.message = f"reported {sol.message or 'solved'} without a finite x"
         sol.solver = self.name
         sol.mode = self.mode
         sol.tier = self.tier
-        if sol.x is not None and np.isnan(sol.objective):
+        if sol.x is not None and sol.objective != sol.objective:  # NaN: not reported
             sol.objective = problem.objective(sol.x)
         if sol.internal_time is not None and not sol.internal_time_covers:
             sol.internal_time_covers = self.internal_time_covers
@@ -180,16 +179,17 @@ class QPSolver(ABC):
             z_box=prev.z_box if prev.z_box is not None and problem.has_box else None,
         )
 
-    def _solve_hot(self, problem: Problem, guess: Guess | None, explicit: bool) -> Solution:
+    def _solve_hot(self, problem: Problem, x0: Array | None) -> Solution:
         key = self._native_signature(problem)
         snapshot = self._snapshot(problem)
         if self._native is not None and key == self._native_key and self._can_update(problem):
             # The native object already holds the previous iterate: pass only an explicit x0.
             changed = frozenset(k for k in DATA_FIELDS if snapshot[k] != self._last.get(k))
-            sol = self._solve_update(problem, guess if explicit else None, changed)
+            guess = None if x0 is None else self._guess(problem, x0)
+            sol = self._solve_update(problem, guess, changed)
         else:
             self._native = None
-            sol = self._solve_fresh(problem, guess, keep=True)
+            sol = self._solve_fresh(problem, self._guess(problem, x0), keep=True)
             sol.rebuilt = True
             self.builds += 1
             self._native_key = key

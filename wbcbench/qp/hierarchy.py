@@ -51,6 +51,7 @@ import numpy as np
 import scipy.linalg
 from scipy.linalg import lapack
 
+from wbcbench.dynamics.dense import upper
 from wbcbench.errors import UnknownNameError
 from wbcbench.qp.base import QPSolver
 from wbcbench.qp.problem import Problem
@@ -189,7 +190,7 @@ def _qr_pivoted(B: Array) -> tuple[Array, Array, Array]:
     F = np.zeros((n, n), order="F")
     F[:, :k] = qr[:, :k]
     Q, _, _ = lapack.dorgqr(F, tau[:k])
-    return Q, np.triu(qr[:k]), jpvt - 1
+    return Q, upper(qr[:k]), jpvt - 1
 
 
 def row_space_and_null_space(E: Array, tol: float = RANK_TOL) -> tuple[Array, Array]:
@@ -199,7 +200,7 @@ def row_space_and_null_space(E: Array, tol: float = RANK_TOL) -> tuple[Array, Ar
     pivoted Householder QR of Eᵀ.
     """
     n = E.shape[1]
-    if E.shape[0] == 0:
+    if E.shape[0] == 0 or n == 0:  # (LAPACK rejects an empty factorisation)
         return np.zeros((0, n)), np.eye(n)
     Q, R, _ = _qr_pivoted(E.T)
     diag = np.abs(np.diag(R))

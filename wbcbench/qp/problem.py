@@ -183,8 +183,9 @@ class Problem:
         if lb is not None and ub is not None:
             if not (lb <= ub).all():
                 self._bound_fault("lb", "ub", lb, ub)
-        elif lb is not None or ub is not None:
-            if np.isnan(lb if ub is None else ub).any():
+        else:
+            side = lb if lb is not None else ub
+            if side is not None and np.isnan(side).any():
                 raise self._invalid("lb/ub contain NaN")
 
     def _invalid(self, msg: str) -> SolverError:

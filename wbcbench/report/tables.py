@@ -414,12 +414,15 @@ def _weights(res: Results, row: pd.Series) -> list[float] | None:
         cfg = json.loads(_config(row) or "{}")
     except ValueError:
         cfg = {}
-    if "weights" in cfg:
-        return [float(w) for w in cfg["weights"]]
     spec = scenario_spec(res, str(row["scenario"]))
     own = (spec.controllers.get("to_osf") or {}) if spec is not None else {}
-    weights = own.get("weights") if isinstance(own, dict) else None
-    return [float(w) for w in weights] if weights else None
+    merged = {**own, **cfg}
+    weights = merged.get("weights")
+    if not weights:
+        return None
+    if merged.get("weighting") == "identical":  # every task weighted by the first
+        weights = weights[:1]
+    return [float(w) for w in weights]
 
 
 def _identical_weighting(res: Results, row: pd.Series) -> bool:
@@ -436,6 +439,10 @@ def _common_window(
     """The metrics window cut to where both runs have logged ticks, and what was done."""
     ends = []
     for run in (a, b):
+        simulated = pd.to_numeric(pd.Series([run.get("sim_duration_s")]), errors="coerce").iloc[0]
+        if np.isfinite(simulated):
+            ends.append(float(simulated))
+            continue
         log = res.log(run["run_id"])
         ends.append(float(log["t"].max()) if not log.empty and "t" in log.columns else 0.0)
     end = min(ends)
@@ -473,8 +480,8 @@ def to_osf_s2(res: Results) -> PaperTable:
     if ident.empty or prio.empty:
         t.missing = (
             "Needs `to_osf` on `lee2021access_s2*` with priority weighting and with identical "
-            "weighting (one weight for every task, e.g. configs `{to_osf: [{}, {weights: "
-            "[1.0e+7]}]}`, as `sweeps/default.yaml` runs)."
+            "weighting (the config `{weighting: identical}` or one weight for every task, as "
+            "`sweeps/default.yaml` runs)."
         )
         return t
     a, b = prio.iloc[-1], ident.iloc[-1]

@@ -214,6 +214,14 @@ def _tocabi(name: str, left_arm: Sequence[ArmRow], right_arm: Sequence[ArmRow]) 
     legs = _bent_legs(("HipPitch", "Knee", "AnklePitch"), a)
     # Arms down from the T-pose, 0.2 rad away from the body.
     arms = (("L_Shoulder3", -(math.pi / 2 - 0.2)), ("R_Shoulder3", math.pi / 2 - 0.2))
+    # The same stance with the elbows bent 0.4 rad and the arms 0.35 rad from the body (for arms
+    # that have an elbow). With straight arms a hand cannot move along its arm: the CoM, pelvis
+    # and both hand-pose tasks stacked are nearly singular (smallest singular value ~7e-4 in the
+    # contacts' null space; ~2e-2 with the elbows bent).
+    arms_bent = (
+        ("L_Shoulder3", -(math.pi / 2 - 0.35)), ("R_Shoulder3", math.pi / 2 - 0.35),
+        ("L_Elbow", -0.4), ("R_Elbow", 0.4),
+    )  # fmt: skip
     # Single support on the left foot: both hip/ankle rolls of -0.172 rad put the CoM over the
     # left sole (within 1 mm laterally); the right leg rolls 0.05 rad outwards and folds by
     # 0.25 rad at hip, knee and ankle, lifting its sole 4 cm, still parallel to the floor.
@@ -236,14 +244,17 @@ def _tocabi(name: str, left_arm: Sequence[ArmRow], right_arm: Sequence[ArmRow]) 
         default_keyframe="stand",
         velocity_limits=_velocity_limits(chains),
     )
+    keyframes = [
+        KeyframeSpec("stand", legs + arms),
+        KeyframeSpec("stand_left", one_leg + arms, stand_on=("l_sole",)),
+    ]
+    if all(any(row[0] == "Elbow" for row in arm) for arm in (left_arm, right_arm)):
+        keyframes.append(KeyframeSpec("stand_arms_bent", legs + arms_bent))
     return HumanoidSpec(
         name=name,
         base=pelvis,
         chains=chains,
-        keyframes=(
-            KeyframeSpec("stand", legs + arms),
-            KeyframeSpec("stand_left", one_leg + arms, stand_on=("l_sole",)),
-        ),
+        keyframes=tuple(keyframes),
         info=info,
     )
 

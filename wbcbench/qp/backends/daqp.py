@@ -59,17 +59,28 @@ _FLAG_TEXT = {
 }
 
 
-def _data(problem: Problem) -> tuple[Array, Array, Array, Any]:
-    """``(A_daqp, bupper, blower, sense)``."""
-    M = np.vstack([problem.A, problem.C])
+def _matrix(problem: Problem) -> Array:
+    """``A_daqp = [A; C]`` (no copy when one of them is empty)."""
+    A, C = problem.A, problem.C
+    return C if not A.shape[0] else (A if not C.shape[0] else np.vstack([A, C]))
+
+
+def _bounds(problem: Problem) -> tuple[Array, Array]:
+    """``(bupper, blower)``: the box first when there is one, then equalities, inequalities."""
     hi, lo = [problem.b, problem.u], [problem.b, problem.l]
-    sense = [np.full(problem.n_eq, EQUALITY_SENSE), np.zeros(problem.n_in)]
     if problem.has_box:
         lb, ub = problem.box()
         hi.insert(0, ub)
         lo.insert(0, lb)
-        sense.insert(0, np.zeros(problem.n))
-    return M, np.concatenate(hi), np.concatenate(lo), np.concatenate(sense).astype(np.int32)
+    return np.concatenate(hi), np.concatenate(lo)
+
+
+def _sense(problem: Problem) -> Any:
+    """Constraint kinds: equality rows flagged, the rest plain."""
+    sense = np.zeros((problem.n if problem.has_box else 0) + problem.n_eq + problem.n_in, np.int32)
+    k = problem.n if problem.has_box else 0
+    sense[k : k + problem.n_eq] = EQUALITY_SENSE
+    return sense
 
 
 class DAQPSolver(QPSolver):
@@ -87,7 +98,7 @@ class DAQPSolver(QPSolver):
 
     def _solve_fresh(self, problem: Problem, guess: Guess | None, keep: bool) -> Solution:
         t0 = time.perf_counter()
-        M, hi, lo, sense = _data(problem)
+        M, (hi, lo), sense = _matrix(problem), _bounds(problem), _sense(problem)
         model = _daqp.Model()
         model.settings = {"eps_prox": -1.0, "eq_reduction": 1, **self.options}
         kwargs: dict[str, Any] = {}
@@ -118,11 +129,10 @@ class DAQPSolver(QPSolver):
             kwargs["H"] = problem.H
         if "g" in changed:
             kwargs["f"] = problem.g
+        if changed & {"A", "C"}:
+            kwargs["A"] = _matrix(problem)
         if changed - {"H", "g"}:
-            M, hi, lo, _ = _data(problem)
-            if changed & {"A", "C"}:
-                kwargs["A"] = M
-            kwargs["bupper"], kwargs["blower"] = hi, lo
+            kwargs["bupper"], kwargs["blower"] = _bounds(problem)
         flag = model.update(**kwargs) if kwargs else 0
         t1 = time.perf_counter()
         if flag < 0:
@@ -148,14 +158,14 @@ class DAQPSolver(QPSolver):
 
     @staticmethod
     def _result(out: Any, problem: Problem, setup: float, wall: float) -> Solution:
-        x, _, flag, info = out
+        x, fval, flag, info = out
         status = _STATUS.get(int(flag), SolutionStatus.FAILED)
         has_x = status in (SolutionStatus.SOLVED, SolutionStatus.MAX_ITER)
-        lam = np.array(info["lam"]) if has_x else None
+        lam = np.asarray(info["lam"]) if has_x else None  # DAQP returns fresh arrays
         k = problem.n if problem.has_box else 0
         return Solution(
             status=status,
-            x=np.array(x) if has_x else None,
+            x=np.asarray(x) if has_x else None,
             y=None if lam is None else lam[k : k + problem.n_eq],
             z=None if lam is None else lam[k + problem.n_eq :],
             z_box=None if lam is None or not problem.has_box else lam[:k],
@@ -163,5 +173,6 @@ class DAQPSolver(QPSolver):
             wall_time=wall,
             setup_time=setup,
             internal_time=float(info["solve_time"]),
+            objective=float(fval) if has_x else float("nan"),
             message=_FLAG_TEXT.get(int(flag), f"exitflag {flag}"),
         )
