@@ -33,7 +33,6 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-import scipy.linalg
 from pydantic import Field
 
 from wbcbench.controllers.base import (
@@ -43,6 +42,7 @@ from wbcbench.controllers.base import (
     ControlOutput,
     StageTimer,
 )
+from wbcbench.dynamics.dense import spd_factor
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp.base import QPSolver
 from wbcbench.qp.hierarchy import (
@@ -107,9 +107,8 @@ def task_levels(terms: list[TaskTerm]) -> list[tuple[int, list[TaskTerm]]]:
 def energy_objective(name: str, M: np.ndarray, n_extra: int, reg: float) -> Objective:
     """Final objective ‖Lᵀ q̈‖² + reg ‖f‖² = q̈ᵀ M q̈ + reg ‖f‖², with M = L Lᵀ (Cholesky)."""
     n = M.shape[0]
-    L = scipy.linalg.cholesky(M, lower=True, check_finite=False)
     F = np.zeros((n + n_extra, n + n_extra))
-    F[:n, :n] = L.T
+    F[:n, :n] = spd_factor(M)  # Lᵀ, upper triangular
     F[n:, n:] = np.sqrt(reg) * np.eye(n_extra)
     return Objective(name, F, np.zeros(n + n_extra))
 

@@ -64,7 +64,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import scipy.linalg
 from pydantic import Field
 
 from wbcbench.controllers.base import (
@@ -84,6 +83,7 @@ from wbcbench.controllers.lqp import (
     task_levels,
 )
 from wbcbench.dynamics.chains import CENTROID_DIM, split_chains
+from wbcbench.dynamics.dense import spd_solve, tri_solve
 from wbcbench.dynamics.reduced import ReducedDynamics, ReducedModel
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp.hierarchy import (
@@ -362,7 +362,7 @@ class RcLqp(Controller):
             # = ‖Lᵀ q̈_uc − f‖² + const with L f = −M_up q̈_p (M_uc = L Lᵀ)
             plain, uc = self.split.plain, self.split.unconstrained
             cross = state.M[np.ix_(uc, plain)] @ x1[: plain.size]
-            f = -scipy.linalg.solve_triangular(final.F.T, cross, lower=True, check_finite=False)
+            f = -tri_solve(final.F, cross, trans=True)  # F = Lᵀ upper triangular
             final = Objective(final.name, final.F, f)
         final.weight = cfg.final_weight
         n_uc = red.M_uc.shape[0]
@@ -381,11 +381,10 @@ class RcLqp(Controller):
         b = np.concatenate([t.acc_ref[r] - t.drift[r] for t, r in rows])
         b -= J[:, plain] @ self._qdd_plain_prev
         Ju = J[:, uc]
-        cho = scipy.linalg.cho_factor(red.M_uc, lower=True, check_finite=False)
-        X = scipy.linalg.cho_solve(cho, Ju.T, check_finite=False)  # M_uc⁻¹ J_uᵀ
+        X = spd_solve(red.M_uc, Ju.T)  # M_uc⁻¹ J_uᵀ
         S = Ju @ X
-        S[np.diag_indices_from(S)] += PREVIEW_DAMPING * max(1.0, float(np.trace(S)) / S.shape[0])
-        qdd_uc = X @ np.linalg.solve(S, b)
+        S.flat[:: S.shape[0] + 1] += PREVIEW_DAMPING * max(1.0, float(np.trace(S)) / S.shape[0])
+        qdd_uc = X @ spd_solve(S, b)
         return red.J_G @ qdd_uc + red.dJG_v
 
     # -- the step -------------------------------------------------------------------------------

@@ -71,9 +71,12 @@ STRATEGY_SUMMARY: dict[str, str] = {
 }
 STRATEGIES: tuple[str, ...] = tuple(STRATEGY_SUMMARY)
 RANK_TOL = 1e-10
-#: At level i (0-based) inequality bounds are widened by i FEAS_TOL (1 + |bound|): the previous
-#: optimum meets them only to the solver's tolerance, and with the held equalities leaving few
-#: directions free, a violation of 1e-10 would make the next QP infeasible.
+#: At level i (0-based) inequality bounds are widened by (i FEAS_TOL + carried) (1 + |bound|):
+#: the previous optimum meets them only to the solver's tolerance, and with the held equalities
+#: leaving few directions free, a violation of 1e-10 would make the next QP infeasible. "carried"
+#: is the largest relative violation the levels above actually left (measured, see
+#: :func:`_carried_violation`): a solver of modest accuracy (an ADMM or interior-point method at
+#: its default tolerance) leaves more than i FEAS_TOL.
 FEAS_TOL = 1e-9
 
 
@@ -212,6 +215,33 @@ def _null_projector(A: Array) -> Array:
     """Orthogonal projector onto null(A), (n, n)."""
     R, _ = row_space_and_null_space(A)
     return np.eye(A.shape[1]) - R.T @ R
+
+
+def _relative_violation(Cx: Array, lower: Array, upper: Array) -> float:
+    """max over rows of how far C x lies outside [l, u], relative to 1 + |bound| (0 inside)."""
+    if not Cx.size:
+        return 0.0
+    with np.errstate(invalid="ignore"):  # an infinite bound gives NaN, which fmax skips
+        below = (lower - Cx) / (1.0 + np.abs(lower))
+        above = (Cx - upper) / (1.0 + np.abs(upper))
+    return float(max(0.0, np.fmax.reduce(below), np.fmax.reduce(above)))  # NaN never wins
+
+
+def _carried_violation(
+    x: Array, hard: Constraints, prev_C: list[Array], prev_lo: list[Array], prev_hi: list[Array]
+) -> float:
+    """The largest relative violation x leaves on the inequalities the next levels inherit."""
+    worst = 0.0
+    if hard.C is not None and hard.C.shape[0]:
+        assert hard.l is not None and hard.u is not None
+        worst = _relative_violation(hard.C @ x, hard.l, hard.u)
+    if hard.lb is not None or hard.ub is not None:
+        lower = hard.lb if hard.lb is not None else np.full(x.size, -np.inf)
+        upper = hard.ub if hard.ub is not None else np.full(x.size, np.inf)
+        worst = max(worst, _relative_violation(x, lower, upper))
+    for C, lo, hi in zip(prev_C, prev_lo, prev_hi, strict=True):
+        worst = max(worst, _relative_violation(C @ x, lo, hi))
+    return worst
 
 
 def _violation(Cx: Array, lower: Array, upper: Array) -> Array:
@@ -407,6 +437,7 @@ def _solve_sequential(
     R_hard, Z, x_p = _hard_factor(hard.A, hard.b)
     last = len(soft) - 1
     skip = False
+    carried = 0.0  # relative violation the levels solved so far left (see FEAS_TOL)
     for i, lv in enumerate(soft):
         if skip:  # solved together with the level above
             skip = False
@@ -414,12 +445,12 @@ def _solve_sequential(
         extra = merged if i == last else []
         assert lv.A is not None and lv.C is not None and lv.l is not None and lv.u is not None
         # growing with the level, so the previous optimum is strictly inside the widened set
-        relax = FEAS_TOL * i
+        relax = FEAS_TOL * i + carried
         t0 = time.perf_counter()
         nxt = soft[i + 1] if i < last else None
         if nullspace and lv.hard_if_feasible and nxt is not None and not _rows_of(nxt.C):
             pair = _feasible_pair(
-                hard, lv, nxt, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i], FEAS_TOL * (i + 1),
+                hard, lv, nxt, x_p, Z, prev_C, prev_lo, prev_hi, solvers[i], relax + FEAS_TOL,
                 merged if i + 1 == last else [], timer,
             )  # fmt: skip
             if pair is not None:
@@ -435,6 +466,7 @@ def _solve_sequential(
                     prev_C.append(lv.C)
                     prev_lo.append(lv.l + res.v)
                     prev_hi.append(lv.u + res.v)
+                carried = max(carried, _carried_violation(x, hard, prev_C, prev_lo, prev_hi))
                 Z = Z_next
                 if nxt.A.shape[0]:
                     _, Zl = row_space_and_null_space(nxt.A @ Z)
@@ -503,6 +535,7 @@ def _solve_sequential(
             prev_C.append(lv.C)
             prev_lo.append(lv.l + res.v)
             prev_hi.append(lv.u + res.v)
+        carried = max(carried, _carried_violation(x, hard, prev_C, prev_lo, prev_hi))
         if nullspace:
             x_p = x
     assert x is not None
