@@ -44,18 +44,11 @@ import numpy as np
 from scipy.linalg import lapack
 
 from wbcbench.dynamics.dense import (
-    spd_factor as _spd_factor,
-)
-from wbcbench.dynamics.dense import (
-    spd_inverse as _spd_inverse,
-)
-from wbcbench.dynamics.dense import (
-    spd_solve_factored as _spd_solve,
-)
-from wbcbench.dynamics.dense import (
-    tri_solve as _tri_solve,
-)
-from wbcbench.dynamics.dense import (
+    spd_factor,
+    spd_inverse,
+    spd_solve,
+    spd_solve_factored,
+    tri_solve,
     upper,
 )
 from wbcbench.dynamics.state import RobotState
@@ -130,7 +123,7 @@ def cod(Y: np.ndarray, rcond: float = 1e-9) -> Decomposition:
     v[perm] = z  # P Z
     v1, v2 = v[:, :r], v[:, r:]
     # Y† = V₁ T'⁻ᵀ Q₁ᵀ  (T' = t[:r] upper triangular)
-    tinv_q1t = _tri_solve(t, q1.T, trans=True)
+    tinv_q1t = tri_solve(t, q1.T, trans=True)
     return Decomposition(pinv=v1 @ tinv_q1t, right_null=v2, left_null=q2, rank=r)
 
 
@@ -166,10 +159,10 @@ def psd_pinv(
     if r == 0:
         return np.zeros((m, m)), 0
     if r == m:
-        return _spd_inverse(X), m
+        return spd_inverse(X), m
     q, _, _ = lapack.dorgqr(qr, tau)
     q1 = q[:, :r]
-    return q1 @ _spd_solve(_spd_factor(q1.T @ X @ q1), q1.T), r
+    return q1 @ spd_solve(q1.T @ X @ q1, q1.T), r
 
 
 # -- contact-constrained dynamics -------------------------------------------------------------
@@ -215,7 +208,7 @@ def contact_dynamics(state: RobotState, frames: Sequence[str]) -> ContactDynamic
         )
     B = Minv @ Jc.T  # (n, c)
     try:
-        Lambda_c = _spd_inverse(Jc @ B)
+        Lambda_c = spd_inverse(Jc @ B)
     except np.linalg.LinAlgError:  # redundant contacts: J_c rank-deficient
         Lambda_c, _ = psd_pinv(Jc @ B, "svd")
     Xt = Lambda_c @ B.T  # J̄_cᵀ (c, n)
@@ -243,9 +236,9 @@ def dynamically_consistent_inverse(
         return dec.pinv, dec.left_null
     v2 = dec.right_null
     Mv2 = M @ v2
-    chol = _spd_factor(v2.T @ Mv2)
+    chol = spd_factor(v2.T @ Mv2)
     # α₂ = −(v₂ᵀ M v₂)⁻¹ v₂ᵀ M Y† β  (eq. 19)
-    alpha = _spd_solve(chol, Mv2.T @ dec.pinv)
+    alpha = spd_solve_factored(chol, Mv2.T @ dec.pinv)
     return dec.pinv - v2 @ alpha, dec.left_null
 
 
@@ -507,7 +500,7 @@ class OsfModel:
         if p == 0:
             return np.zeros((Nw.shape[0], 0)), np.zeros((F.shape[0], 0))
         Qf, Rf = np.linalg.qr(F @ Nw)
-        Yc = _tri_solve(Rf, Nw.T, trans=True).T
+        Yc = tri_solve(Rf, Nw.T, trans=True).T
         return Yc, Qf
 
 
