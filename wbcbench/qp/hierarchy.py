@@ -230,7 +230,9 @@ def _relative_violation(Cx: Array, lower: Array, upper: Array) -> float:
 def _carried_violation(
     x: Array, hard: Constraints, prev_C: list[Array], prev_lo: list[Array], prev_hi: list[Array]
 ) -> float:
-    """The largest relative violation x leaves on the inequalities the next levels inherit."""
+    """The largest relative violation x leaves on the inequalities the next levels inherit (the
+    level just solved is not among them: its rows are held shifted by its own slacks, which x
+    meets by construction)."""
     worst = 0.0
     if hard.C is not None and hard.C.shape[0]:
         assert hard.l is not None and hard.u is not None
@@ -462,11 +464,12 @@ def _solve_sequential(
                     break
                 assert nxt.A is not None
                 held_rows += [lv.A, nxt.A]
+                # (the held level's own rows, shifted by its slacks, hold at x by construction)
+                carried = max(carried, _carried_violation(x, hard, prev_C, prev_lo, prev_hi))
                 if lv.C.shape[0]:
                     prev_C.append(lv.C)
                     prev_lo.append(lv.l + res.v)
                     prev_hi.append(lv.u + res.v)
-                carried = max(carried, _carried_violation(x, hard, prev_C, prev_lo, prev_hi))
                 Z = Z_next
                 if nxt.A.shape[0]:
                     _, Zl = row_space_and_null_space(nxt.A @ Z)
@@ -531,11 +534,11 @@ def _solve_sequential(
                 _, Zl = row_space_and_null_space(lv.A @ Z)
                 Z = Z @ Zl
                 x_p = x
+        carried = max(carried, _carried_violation(x, hard, prev_C, prev_lo, prev_hi))
         if lv.C.shape[0]:
             prev_C.append(lv.C)
             prev_lo.append(lv.l + res.v)
             prev_hi.append(lv.u + res.v)
-        carried = max(carried, _carried_violation(x, hard, prev_C, prev_lo, prev_hi))
         if nullspace:
             x_p = x
     assert x is not None

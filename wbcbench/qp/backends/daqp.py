@@ -77,8 +77,8 @@ def _bounds(problem: Problem) -> tuple[Array, Array]:
 
 def _sense(problem: Problem) -> Any:
     """Constraint kinds: equality rows flagged, the rest plain."""
-    sense = np.zeros((problem.n if problem.has_box else 0) + problem.n_eq + problem.n_in, np.int32)
     k = problem.n if problem.has_box else 0
+    sense = np.zeros(k + problem.n_eq + problem.n_in, np.int32)
     sense[k : k + problem.n_eq] = EQUALITY_SENSE
     return sense
 
