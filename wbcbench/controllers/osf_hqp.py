@@ -61,18 +61,6 @@ class OsfHqp(OsfControllerBase):
         self.final_solver = ctx.new_solver()
         Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
         self.WtW = Wc.T @ Wc
-        self._diagonals: dict[tuple[int, int], np.ndarray] = {}
-        # the box of a level with acceleration bounds: (2, m + p) with the wrench part free,
-        # None for a level without (its size p is known once the parameters are)
-        self._box_free: list[np.ndarray | None] = []
-
-    def _hessian(self, m: int, p: int) -> np.ndarray:
-        """diag(1 (m), ε (p)): the level's slack norm and the wrench regularization."""
-        d = self._diagonals.get((m, p))
-        if d is None:
-            d = np.concatenate([np.ones(m), np.full(p, self.config.regularization)])
-            self._diagonals[(m, p)] = d
-        return np.diag(d)  # a fresh array: some backends write into what they are given
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         timer = StageTimer(state)
@@ -85,13 +73,6 @@ class OsfHqp(OsfControllerBase):
         cw_f0 = self.Cw @ p.f0 if self.nc else np.zeros(0)
         CwF = self.Cw @ p.F if self.nc else np.zeros((0, k))
         CwQ = self.Cw @ p.Qf if self.nc else np.zeros((0, np_))
-        if len(self._box_free) != len(p.levels):
-            self._box_free = [
-                np.array([np.full(lv.dim + np_, -np.inf), np.full(lv.dim + np_, np.inf)])
-                if np.isfinite(bound).any()
-                else None
-                for lv, bound in zip(p.levels, self.acc_bound, strict=True)
-            ]
         tau = np.zeros(k)
         partial: list[np.ndarray] = []
         problems: list[Problem] = []
@@ -118,15 +99,13 @@ class OsfHqp(OsfControllerBase):
             bounds[0] -= tol
             bounds[1] += tol
             lb = ub = None
-            box = self._box_free[i]
-            if box is not None:
-                lb, ub = box.copy()
-                bound = self.acc_bound[i]
-                lb[:m] = -bound - refs[i]
-                ub[:m] = bound - refs[i]
+            bound = self.acc_bound[i]
+            if np.isfinite(bound).any():  # |ẍ* + w| ≤ ẍ_max on the slacks, F_r free
+                lb = np.concatenate([-bound - refs[i], np.full(np_, -np.inf)])
+                ub = np.concatenate([bound - refs[i], np.full(np_, np.inf)])
             name = f"T{i + 1}"
             problem = Problem(
-                self._hessian(m, np_),
+                np.diag(np.concatenate([np.ones(m), np.full(np_, cfg.regularization)])),
                 np.zeros(nx),
                 C=C,
                 l=bounds[0],
@@ -175,17 +154,6 @@ class OsfHqp(OsfControllerBase):
                     problems,
                 )
             f_r = sol.x
-        dist = p.Yc @ f_r
-        tau = tau + dist
-        wrench = p.wrench(tau)
-        diagnostics.update(self.consistency_diagnostics(state, p, per_level, partial, dist, wrench))
-        return ControlOutput(
-            tau=tau,
-            qdd=p.qdd(tau),
-            wrench=wrench,
-            terms=terms,
-            timings=self.finish_timings(timer, read),
-            iterations=timer.iterations,
-            diagnostics=diagnostics,
-            problems=problems if self.ctx.keep_problems else [],
+        return self.output(
+            state, read, timer, terms, per_level, partial, p.Yc @ f_r, diagnostics, problems
         )

@@ -177,6 +177,36 @@ class OsfControllerBase(Controller):
         out["dc_error"] = dc_error(params)
         return out
 
+    def output(
+        self,
+        state: RobotState,
+        read: ParamsRead,
+        timer: StageTimer,
+        terms: list[TaskTerm],
+        per_level: list[list[TaskTerm]],
+        partial: list[np.ndarray],
+        dist: np.ndarray,
+        diagnostics: dict[str, float],
+        problems: list[Problem],
+    ) -> ControlOutput:
+        """The tick's output for the torque Γ = Γ_{≤L} + ``dist`` (the levels' cumulative
+        torques ``partial`` plus the wrench-distribution torque), with what it realises."""
+        tau = partial[-1] + dist if partial else dist
+        wrench = read.params.wrench(tau)
+        diagnostics.update(
+            self.consistency_diagnostics(state, read.params, per_level, partial, dist, wrench)
+        )
+        return ControlOutput(
+            tau=tau,
+            qdd=read.params.qdd(tau),
+            wrench=wrench,
+            terms=terms,
+            timings=self.finish_timings(timer, read),
+            iterations=timer.iterations,
+            diagnostics=diagnostics,
+            problems=problems if self.ctx.keep_problems else [],
+        )
+
     def failed(
         self,
         timer: StageTimer,
@@ -325,8 +355,6 @@ class ToOsf(OsfControllerBase):
         opt_refs = np.split(rho, np.cumsum([r.size for r in refs])[:-1])
         partial = p.partial_torques(opt_refs)
         dist = p.Yw @ f_opt if nc else np.zeros(k)
-        tau = partial[-1] + dist
-        wrench = p.wrench(tau)
         diagnostics = self.base_diagnostics(read)
         pos = 0
         for lv in per_level:
@@ -334,14 +362,6 @@ class ToOsf(OsfControllerBase):
                 amend = rho[pos : pos + term.dim] - term.acc_ref
                 diagnostics[f"amend.{term.task.name}"] = float(np.linalg.norm(amend))
                 pos += term.dim
-        diagnostics.update(self.consistency_diagnostics(state, p, per_level, partial, dist, wrench))
-        return ControlOutput(
-            tau=tau,
-            qdd=p.qdd(tau),
-            wrench=wrench,
-            terms=terms,
-            timings=self.finish_timings(timer, read),
-            iterations=timer.iterations,
-            diagnostics=diagnostics,
-            problems=[problem] if self.ctx.keep_problems else [],
+        return self.output(
+            state, read, timer, terms, per_level, partial, dist, diagnostics, [problem]
         )
