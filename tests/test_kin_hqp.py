@@ -14,7 +14,6 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from wbcbench.controllers.base import ControllerContext
 from wbcbench.controllers.kin_hqp import GazeTask, KinHqp, KinHqpConfig, default_self_pairs
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import WbcBenchError
@@ -23,14 +22,11 @@ from wbcbench.qp import Problem, make_solver
 from wbcbench.qp.hls import Level
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.load import (
-    build_contacts,
-    build_tasks,
     controller_settings,
     load_scenario,
-    torque_limits,
 )
 from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
-from wbcbench.sim.setup import scenario_obstacles
+from wbcbench.sim.setup import scenario_context, scenario_obstacles
 from wbcbench.tasks.collision import (
     Box,
     CollisionModel,
@@ -48,13 +44,7 @@ def controller_for(robot: Robot, scenario: str, **overrides: Any) -> KinHqp:
     """kin_hqp built as the kinematic runner builds it, with settings overridden."""
     loaded = load_scenario(scenario)
     spec = loaded.spec
-    ctx = ControllerContext(
-        robot=robot,
-        tasks=build_tasks(spec, robot),
-        contacts=build_contacts(spec, robot),
-        tau_max=torque_limits(spec, robot),
-        dt=spec.dt,
-    )
+    ctx = scenario_context(loaded, robot)
     cfg = {**controller_settings(loaded, "kin_hqp"), **overrides}
     ctrl = KinHqp(ctx, KinHqpConfig.model_validate(cfg))
     ctrl.use_environment(scenario_obstacles(loaded))

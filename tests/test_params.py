@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-from wbcbench.controllers.base import ControllerContext
 from wbcbench.controllers.registry import make_controller
 from wbcbench.dynamics.osf import OsfModel, OsfParams, group_levels
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.robots.loader import Robot
-from wbcbench.scenarios.load import build_contacts, build_tasks, load_scenario, torque_limits
+from wbcbench.scenarios.load import build_tasks, load_scenario
 from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
 from wbcbench.sim.params import ParameterServer, ParamsMode, parse_params_mode
+from wbcbench.sim.setup import scenario_context
 
 from .conftest import random_standing_state
 
@@ -116,13 +116,7 @@ def test_closed_loop_with_async_params_cleans_up(tocabi: Robot) -> None:
 
 def test_controller_close_stops_the_worker(tocabi: Robot) -> None:
     loaded = load_scenario("tocabi_stand_sway")
-    ctx = ControllerContext(
-        robot=tocabi,
-        tasks=build_tasks(loaded.spec, tocabi),
-        contacts=build_contacts(loaded.spec, tocabi),
-        tau_max=torque_limits(loaded.spec, tocabi),
-        solver="daqp",
-    )
+    ctx = scenario_context(loaded, tocabi, solver="daqp")
     ctrl = make_controller("to_osf", ctx, {"params": "async"})
     q, v = tocabi.keyframe("stand")
     ctrl.start(RobotState(tocabi, q, v))

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from wbcbench.controllers.base import ControllerContext
 from wbcbench.controllers.qp_wbc import QpWbc, QpWbcConfig
 from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
 from wbcbench.qp import Problem, available_solvers, make_solver
 from wbcbench.robots.loader import Robot
-from wbcbench.scenarios.load import build_contacts, build_tasks, load_scenario, torque_limits
+from wbcbench.scenarios.load import load_scenario
+from wbcbench.sim.setup import scenario_context
 
 from .conftest import random_standing_state
 
@@ -27,15 +27,7 @@ def make_qp_wbc(
     robot: Robot, solver: str = "proxqp", tier: str = "high", **config: object
 ) -> QpWbc:
     loaded = load_scenario(SCENARIO[robot.name])
-    ctx = ControllerContext(
-        robot=robot,
-        tasks=build_tasks(loaded.spec, robot),
-        contacts=build_contacts(loaded.spec, robot),
-        tau_max=torque_limits(loaded.spec, robot),
-        solver=solver,
-        tier=tier,
-        keep_problems=True,
-    )
+    ctx = scenario_context(loaded, robot, solver=solver, tier=tier, keep_problems=True)
     return QpWbc(ctx, QpWbcConfig(**config))  # type: ignore[arg-type]
 
 

@@ -9,14 +9,15 @@ import functools
 import numpy as np
 import pytest
 
-from wbcbench.controllers.base import Controller, ControllerContext
+from wbcbench.controllers.base import Controller
 from wbcbench.controllers.lqp import Lqp, LqpConfig
 from wbcbench.controllers.rc_lqp import RcLqp, RcLqpConfig
 from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
 from wbcbench.robots.loader import Robot
-from wbcbench.scenarios.load import build_contacts, build_tasks, load_scenario, torque_limits
+from wbcbench.scenarios.load import load_scenario
 from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
+from wbcbench.sim.setup import scenario_context
 
 SCENARIOS = ["ahn_double_support", "ahn_single_support"]
 # the reference backend of both controllers (an active-set method: exact up to round-off)
@@ -24,15 +25,7 @@ SOLVER = "quadprog"
 
 
 def make(cls: type[Controller], cfg: object, scenario: str, robot: Robot) -> Controller:
-    loaded = load_scenario(scenario)
-    ctx = ControllerContext(
-        robot=robot,
-        tasks=build_tasks(loaded.spec, robot),
-        contacts=build_contacts(loaded.spec, robot),
-        tau_max=torque_limits(loaded.spec, robot),
-        solver=SOLVER,
-        tier="high",
-    )
+    ctx = scenario_context(load_scenario(scenario), robot, solver=SOLVER, tier="high")
     return cls(ctx, cfg)  # type: ignore[arg-type]
 
 

@@ -11,7 +11,8 @@ from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import UnknownNameError
 from wbcbench.qp import available_solvers
 from wbcbench.robots.loader import Robot
-from wbcbench.scenarios.load import build_contacts, build_tasks, load_scenario, torque_limits
+from wbcbench.scenarios.load import load_scenario
+from wbcbench.sim.setup import scenario_context
 
 from .conftest import random_standing_state
 
@@ -27,15 +28,7 @@ def applicable(scenario: str) -> list[str]:
 
 
 def context(robot: Robot, solver: str, scenario: str = DYNAMIC) -> ControllerContext:
-    loaded = load_scenario(scenario)
-    return ControllerContext(
-        robot=robot,
-        tasks=build_tasks(loaded.spec, robot),
-        contacts=build_contacts(loaded.spec, robot),
-        tau_max=torque_limits(loaded.spec, robot),
-        solver=solver,
-        tier="mid",
-    )
+    return scenario_context(load_scenario(scenario), robot, solver=solver, tier="mid")
 
 
 @pytest.mark.parametrize("solver", available_solvers())

@@ -63,16 +63,7 @@ def test_osf_hqp_table_puts_the_papers_ratio_beside_ours(tmp_path: Path) -> None
     store = ResultsStore(tmp_path)
     for controller, scale in (("hqp", 10.0), ("osf_hqp", 1.0)):
         rid = f"{controller}-run"
-        row = dict(
-            run_id=rid,
-            scenario="lee2021iros_table1",
-            controller=controller,
-            controller_config="{}",
-            solver="qpoases",
-            mode="hot",
-            status="ok",
-            kind="timing",
-        )
+        row = _timing_row(rid, "lee2021iros_table1", controller, solver="qpoases")
         metrics = [
             dict(run_id=rid, task=f"level{i}", metric=m, value=scale * i, unit="us")
             for i in range(1, 6)

@@ -36,6 +36,25 @@ def scenario_obstacles(loaded: LoadedScenario) -> list[Box]:
     return [Box.from_rpy(o.name, o.pos, o.size, o.rpy) for o in loaded.spec.environment.obstacles]
 
 
+def scenario_context(
+    loaded: LoadedScenario,
+    robot: Robot,
+    context_cls: type[ControllerContext] = ControllerContext,
+    **options: Any,
+) -> ControllerContext:
+    """A controller context with the scenario's tasks, contacts, torque limits and period;
+    ``options`` are further fields of ``context_cls`` (``solver``, ``tier``, ...)."""
+    spec = loaded.spec
+    return context_cls(
+        robot=robot,
+        tasks=build_tasks(spec, robot),
+        contacts=build_contacts(spec, robot),
+        tau_max=torque_limits(spec, robot),
+        dt=spec.dt,
+        **options,
+    )
+
+
 def build_controller(
     loaded: LoadedScenario,
     settings: Any,
@@ -50,15 +69,13 @@ def build_controller(
     extra fields of ``context_cls`` (``keep_problems``, ...).
     """
     spec = loaded.spec
-    ctx = context_cls(
-        robot=robot,
-        tasks=build_tasks(spec, robot),
-        contacts=build_contacts(spec, robot),
-        tau_max=torque_limits(spec, robot),
+    ctx = scenario_context(
+        loaded,
+        robot,
+        context_cls,
         solver=settings.solver,
         tier=settings.tier,
         mode=settings.mode,
-        dt=spec.dt,
         **context_options,
     )
     cfg = {**controller_settings(loaded, settings.controller), **settings.controller_config}
