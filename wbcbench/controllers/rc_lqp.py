@@ -28,13 +28,19 @@ energy alone it picks chain centroidal accelerations the hand motion does not wa
 makes the rest of the chain (the other arm, the neck, the waist) compensate every hand motion,
 and with no posture task those light joints drift into their limits in closed loop (measured:
 head and neck past their limits within 1.5 s, hand error 3× lqp's). The preview d is the
-centroidal acceleration of the minimum-M_uc-energy chain motion that meets LQP 2's task rows, with
-the base and constraint-chain accelerations of the previous tick (one least-squares solve, no
-QP). ``priority`` (default) adds q̈_r,G = d as LQP 1's last priority — the paper's "additional
-priority in LQP 1" (§4.2), fed before LQP 2 rather than after it — so the legs and the base
-balance the chains' centroidal motion below the CoM and pelvis tasks; ``energy`` only aims
-LQP 1's energy term at d (no extra level, weaker); ``off`` is the paper's literal LQP 1. Eq. (30)
-and every higher priority are untouched either way.
+centroidal acceleration of the chain motion LQP 2's task rows ask for, priority after priority
+(damped, dynamically consistent least squares in the null space of the priorities above; no QP),
+with the base and constraint-chain accelerations of the previous tick. The lower priorities
+matter when one chain carries the waist, both arms and the head (COMAN+-like): eq. (30) and the
+hand and torso rows then fix every chain joint, so the posture rows reach the chain only through
+d (measured on ``comanplus_stand_sway`` with the highest priority alone in d: mean posture error
+1.36 rad against lqp's 0.11, a forearm–wrist pair counter-rotating). ``priority`` (default) adds
+q̈_r,G = d as an extra priority of LQP 1 — the paper's "additional priority in LQP 1" (§4.2), fed
+before LQP 2 rather than after it — right after the chains' highest task priority, so the legs
+and the base balance the chains' centroidal motion below the CoM and pelvis tasks but above
+lower ones such as a leg posture (with d below the leg posture the same run fell at 0.25 s);
+``energy`` only aims LQP 1's energy term at d (no extra level, weaker); ``off`` is the paper's
+literal LQP 1. Eq. (30) and every higher priority are untouched either way.
 
 Torque assembly (``assembly``):
 
@@ -83,7 +89,7 @@ from wbcbench.controllers.lqp import (
     task_levels,
 )
 from wbcbench.dynamics.chains import CENTROID_DIM, split_chains
-from wbcbench.dynamics.dense import spd_solve, tri_solve
+from wbcbench.dynamics.dense import spd_factor, tri_solve
 from wbcbench.dynamics.reduced import ReducedDynamics, ReducedModel
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp.hierarchy import (
@@ -130,8 +136,12 @@ class RcLqpConfig(LexicographicConfig):
     )
 
 
-#: Tikhonov damping of the preview's least squares, relative to the mean of diag(J M_uc⁻¹ Jᵀ)
+#: Tikhonov damping of the preview's least squares, relative to the largest squared singular
+#: value of each priority's rows
 PREVIEW_DAMPING = 1e-6
+#: singular values below this fraction of the largest count as zero in the preview (their
+#: directions are left to the priorities below)
+PREVIEW_RANK_TOL = 1e-6
 
 
 def _solve(
@@ -163,6 +173,8 @@ class _RowSplit:
 
     lqp1: dict[str, np.ndarray]
     lqp2: dict[str, np.ndarray]
+    #: the highest priority with rows in LQP 2 (where LQP 1's preview level goes), 0 if none
+    chain_priority: int
 
 
 class RcLqp(Controller):
@@ -206,15 +218,21 @@ class RcLqp(Controller):
             mask = red.reducible_rows(term.J)
             lqp1[term.task.name] = np.flatnonzero(mask)
             lqp2[term.task.name] = np.flatnonzero(~mask)
-        return _RowSplit(lqp1, lqp2)
+        chain = [t.task.priority for t in terms if lqp2[t.task.name].size]
+        return _RowSplit(lqp1, lqp2, min(chain, default=0))
 
     # -- LQP 1 ----------------------------------------------------------------------------------
 
     def lqp1_levels(
-        self, state: RobotState, red: ReducedModel, terms: list[TaskTerm]
+        self,
+        state: RobotState,
+        red: ReducedModel,
+        terms: list[TaskTerm],
+        preview: np.ndarray | None = None,
     ) -> tuple[Constraints, list[PriorityLevel], np.ndarray, np.ndarray]:
         """LQP 1's priority 1 (hard) and levels over x₁ = (q̈_r, f), and the constraint-chain
-        torque map Γ_p = G x₁ + γ."""
+        torque map Γ_p = G x₁ + γ; ``preview`` (the chains' centroidal accelerations) becomes a
+        level right after the levels of the chains' highest task priority."""
         cfg = self.config
         assert self._rows is not None
         nc, n_r, n_p = self.nc, self.split.n_reduced, red.n_plain
@@ -251,6 +269,9 @@ class RcLqp(Controller):
             )
         )
         for p, group in task_levels(terms):
+            if preview is not None and p > self._rows.chain_priority:
+                levels.append(self._preview_level(preview))
+                preview = None
             rows = [(t, self._rows.lqp1[t.task.name]) for t in group]
             rows = [(t, r) for t, r in rows if r.size]
             if not rows:
@@ -261,7 +282,15 @@ class RcLqp(Controller):
             Jr, drift_r = red.task(J, drift)
             A = np.hstack([Jr, np.zeros((Jr.shape[0], nc))])
             levels.append(PriorityLevel(f"p{p}", A=A, b=ref - drift_r))
+        if preview is not None:
+            levels.append(self._preview_level(preview))
         return hard, levels, G, gamma
+
+    def _preview_level(self, preview: np.ndarray) -> PriorityLevel:
+        """q̈_r,G = d: the chains' centroidal accelerations set to the preview."""
+        sel = np.zeros((preview.size, self.split.n_reduced + self.nc))
+        sel[:, self.centroid_rows] = np.eye(preview.size)
+        return PriorityLevel("preview", A=sel, b=preview)
 
     def solve_lqp1(
         self,
@@ -369,23 +398,35 @@ class RcLqp(Controller):
         return _solve(Constraints(n_uc), levels, final, cfg, pool, timer)
 
     def preview(self, state: RobotState, red: ReducedModel, terms: list[TaskTerm]) -> np.ndarray:
-        """Centroidal accelerations (6·n_chains,) of the minimum-M_uc-energy chain motion that
-        meets LQP 2's task rows, the base and constraint chain moving as on the previous tick."""
+        """Centroidal accelerations (6·n_chains,) of the chain motion LQP 2's task rows ask for,
+        the base and constraint chain moving as on the previous tick.
+
+        The priorities are resolved in order, each by damped least squares in the null space of
+        the ones above, in the coordinates u = Lᵀ q̈_uc (M_uc = L Lᵀ) where ‖u‖² is the chains'
+        acceleration energy: the motion left over has the least energy.
+        """
         assert self._rows is not None
         plain, uc = self.split.plain, self.split.unconstrained
-        rows = [(t, self._rows.lqp2[t.task.name]) for t in terms]
-        rows = [(t, r) for t, r in rows if r.size]
-        if not rows:
-            return red.J_G @ np.zeros(uc.size) + red.dJG_v
-        J = np.vstack([t.J[r] for t, r in rows])
-        b = np.concatenate([t.acc_ref[r] - t.drift[r] for t, r in rows])
-        b -= J[:, plain] @ self._qdd_plain_prev
-        Ju = J[:, uc]
-        X = spd_solve(red.M_uc, Ju.T)  # M_uc⁻¹ J_uᵀ
-        S = Ju @ X
-        S.flat[:: S.shape[0] + 1] += PREVIEW_DAMPING * max(1.0, float(np.trace(S)) / S.shape[0])
-        qdd_uc = X @ spd_solve(S, b)
-        return red.J_G @ qdd_uc + red.dJG_v
+        Lt = spd_factor(red.M_uc)  # Lᵀ, upper triangular
+        u = np.zeros(uc.size)
+        Z = np.eye(uc.size)  # orthonormal basis of what the priorities so far leave free (in u)
+        for _, group in task_levels(terms):
+            rows = [(t, self._rows.lqp2[t.task.name]) for t in group]
+            rows = [(t, r) for t, r in rows if r.size]
+            if not rows or not Z.shape[1]:
+                continue
+            J = np.vstack([t.J[r] for t, r in rows])
+            b = np.concatenate([t.acc_ref[r] - t.drift[r] for t, r in rows])
+            b -= J[:, plain] @ self._qdd_plain_prev
+            Ju = tri_solve(Lt, J[:, uc].T, trans=True).T  # J_uc L⁻ᵀ
+            b -= Ju @ u
+            U, sv, Vt = np.linalg.svd(Ju @ Z, full_matrices=True)
+            rank = int(np.sum(sv > PREVIEW_RANK_TOL * sv[0])) if sv.size and sv[0] > 0 else 0
+            s_r = sv[:rank]
+            gain = s_r / (s_r**2 + PREVIEW_DAMPING * sv[0] ** 2) if rank else s_r
+            u += Z @ (Vt[:rank].T @ (gain * (U[:, :rank].T @ b)))
+            Z = Z @ Vt[rank:].T
+        return red.J_G @ tri_solve(Lt, u) + red.dJG_v
 
     # -- the step -------------------------------------------------------------------------------
 
@@ -403,15 +444,13 @@ class RcLqp(Controller):
             self._rows = self._classify(red, terms)
 
         t1 = time.perf_counter()
-        hard1, levels1, G1, gamma1 = self.lqp1_levels(state, red, terms)
-        preview = None
+        preview = None  # the chains' centroidal accelerations: LQP 1's energy target
+        preview_level = None  # or its level
         if cfg.centroid_preview != "off" and uc.size:
             preview = self.preview(state, red, terms)
             if cfg.centroid_preview == "priority":
-                sel = np.zeros((preview.size, n_r + nc))
-                sel[:, self.centroid_rows] = np.eye(preview.size)
-                levels1.append(PriorityLevel("preview", A=sel, b=preview))
-                preview = None
+                preview, preview_level = None, preview
+        hard1, levels1, G1, gamma1 = self.lqp1_levels(state, red, terms, preview_level)
         res1 = self.solve_lqp1(red, hard1, levels1, preview, self.pool1, timer)
         t_lqp1 = time.perf_counter() - t1
         if not res1.ok:
@@ -437,7 +476,7 @@ class RcLqp(Controller):
                     reached = x1[n_p:n_r] + w
                     sel = np.zeros((n_r - n_p, n_r + nc))
                     sel[:, n_p:n_r] = np.eye(n_r - n_p)
-                    hard1, levels1b, G1, gamma1 = self.lqp1_levels(state, red, terms)
+                    hard1, levels1b, G1, gamma1 = self.lqp1_levels(state, red, terms, preview_level)
                     levels1b.append(PriorityLevel("coupling", A=sel, b=reached))
                     res1 = self.solve_lqp1(red, hard1, levels1b, preview, self.pool1b, timer)
                     t_lqp1 += time.perf_counter() - t1
