@@ -301,3 +301,39 @@ def test_a_closed_loop_run_rejects_a_qp_reported_solved_that_is_not(
     ]
     log = pd.read_parquet(tmp_path / "out" / "logs" / f"{lie['run_id']}.parquet")
     assert list(log["ok"][:4]) == [0.0, 1.0, 1.0, 0.0]
+
+
+def test_a_recorder_that_falls_inside_the_window_hands_over_to_the_next(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """record_with: [qp_wbc, lqp] with qp_wbc's run ending early: lqp records the window, the
+    timing row is computed on its states and says so; a rerun resumes from the cache."""
+    import json
+
+    import wbcbench.bench.timing as timing
+
+    real = timing.record_states
+
+    def falls_early(loaded, settings, *args, **kwargs):
+        rec = real(loaded, settings, *args, **kwargs)
+        if settings.controller == "qp_wbc":  # as if it fell after 0.1 s
+            return rec.window(0.0, 100)
+        return rec
+
+    monkeypatch.setattr(timing, "record_states", falls_early)
+    text = TINY.split("timing:")[0].format(tracking_solvers="quadprog") + (
+        "timing:\n  - scenarios: [tocabi_stand_sway]\n    controllers: [qp_wbc]\n"
+        "    solvers: [quadprog]\n    ticks: 12\n    warmup: 2\n    start: 0.2\n"
+        "    record_with: [qp_wbc, lqp]\n    set: [duration=0.3]\n"
+    )
+    p = plan(write(tmp_path, text))
+    p.jobs = [j for j in p.jobs if j.kind == "timing"]
+    assert p.jobs[0].options["recorder"] == "qp_wbc"
+    assert p.jobs[0].options["fallback_recorders"] == ["lqp"]
+    run_sweep(p, tmp_path / "out", show_progress=False)
+    row = pd.read_csv(tmp_path / "out" / "runs.csv").iloc[0]
+    assert row["status"] == "ok", row["message"]
+    assert row["ticks"] == 12
+    assert json.loads(row["settings"])["recorder"] == "lqp"
+    recordings = sorted(path.name for path in (tmp_path / "out" / "recordings").glob("*.npz"))
+    assert [name.split("-")[-2] for name in recordings] == ["lqp", "qp_wbc"]

@@ -17,7 +17,8 @@ into closed-loop runs, each ``timing`` matrix into open-loop replay timing runs 
       - solvers: [native]
         modes: [cold, hot]
         ticks: 300
-        record_with: [lqp]          # the controller whose closed-loop run is replayed
+        record_with: [lqp, to_osf]  # whose closed-loop run is replayed: the first that applies
+                                    # and does not fall or fail inside the window
         skip: [{solver: piqp, mode: cold, reason: "interior point, 15 ms per solve"}]
 
 :func:`plan_sweep` validates everything (every scenario against its robot, every controller,
@@ -125,7 +126,8 @@ class TimingSpec(MatrixSpec):
     )
     record_with: list[str] = Field(
         default_factory=lambda: ["qp_wbc"],
-        description="controllers to record the states with, first that applies wins",
+        description="controllers to record the states with, in order: the first that applies "
+        "and whose closed-loop run covers the window (does not fall or fail before its end)",
     )
     max_step_ms: float = Field(
         50.0, gt=0, description="abandon (skip) a combination slower than this per tick"
@@ -412,20 +414,24 @@ def _timing_start(matrix: TimingSpec, loaded: Any) -> float:
     return round(max(0.0, min(start, latest)), 6)
 
 
-def _recorder(matrix: TimingSpec, loaded: Any, file: str, key: str) -> str:
-    """The controller that records the states: the first of record_with that applies."""
+def _recorders(matrix: TimingSpec, loaded: Any, file: str, key: str) -> list[str]:
+    """The controllers that may record the states, in order: those of record_with that apply
+    (the first whose run covers the window is used), else the first registered that applies."""
     from wbcbench.controllers.registry import available_controllers, controller_class
 
+    listed = []
     for i, name in enumerate(matrix.record_with):
         try:
             cls = controller_class(name)
         except UnknownNameError as exc:
             raise ScenarioError(file, f"{key}.record_with[{i}]", str(exc)) from None
         if not cls.applies_to(loaded.spec):
-            return name
+            listed.append(name)
+    if listed:
+        return listed
     for name in available_controllers():
         if not controller_class(name).applies_to(loaded.spec):
-            return name
+            return [name]
     raise ScenarioError(file, key, f"no registered controller applies to {loaded.name!r}")
 
 
@@ -440,12 +446,20 @@ def _shorten(spec: Any, cap: float) -> tuple[str, ...]:
     return tuple(out)
 
 
+def _recorder_options(recorders: list[str]) -> dict[str, Any]:
+    """``recorder`` (the first choice) and, when there are more, ``fallback_recorders``."""
+    out: dict[str, Any] = {"recorder": recorders[0]}
+    if recorders[1:]:
+        out["fallback_recorders"] = recorders[1:]
+    return out
+
+
 def _timing_options(matrix: TimingSpec, loaded: Any, file: str, key: str) -> dict[str, Any]:
     return dict(
         ticks=matrix.ticks,
         warmup=matrix.warmup,
         start=_timing_start(matrix, loaded),
-        recorder=_recorder(matrix, loaded, file, key),
+        **_recorder_options(_recorders(matrix, loaded, file, key)),
         max_step_ms=matrix.max_step_ms,
         probe_ticks=matrix.probe_ticks,
         check_tol=matrix.check_tol,

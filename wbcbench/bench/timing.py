@@ -1,7 +1,9 @@
 """Timing runs: every controller × solver replays exactly the same recorded states.
 
 Protocol (DESIGN §7): the states of one closed-loop run per scenario are recorded once and cached
-next to the results (``recordings/<scenario>-<hash>-<recorder>-<end>.npz``); each controller ×
+next to the results (``recordings/<scenario>-<hash>-<recorder>-<end>.npz``; when the planned
+recorder falls or fails inside the window, the next of the matrix's ``record_with`` that applies
+records it, and the rows name the recorder they replayed); each controller ×
 solver × mode then steps a fresh controller through the same window of ``ticks`` states, open
 loop, serially, with one BLAS thread. The first ``warmup`` ticks are discarded. For every stage
 (``dynamics``, ``build``, ``solve``, ``solve_internal``, ``total``, and whatever further stages a
@@ -69,6 +71,25 @@ def cached_recording(
     return rec.window(start, ticks)
 
 
+def recording_for(
+    folder: str | Path, loaded: LoadedScenario, options: dict[str, Any]
+) -> tuple[Recording, str]:
+    """The window of the planned recorder (``options["recorder"]``), or of the first of
+    ``options["fallback_recorders"]`` whose run covers it when the planned one fell or failed
+    inside it; with none covering it, the longest. Returns the recording and its recorder."""
+    recorders = [options["recorder"], *options.get("fallback_recorders", [])]
+    start, ticks = float(options["start"]), int(options["ticks"])
+    best: tuple[Recording, str] | None = None
+    for name in recorders:
+        rec = cached_recording(folder, loaded, name, start, ticks)
+        if len(rec) >= ticks:
+            return rec, name
+        if best is None or len(rec) > len(best[0]):
+            best = (rec, name)
+    assert best is not None
+    return best
+
+
 # -- timing rows
 
 
@@ -121,10 +142,14 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
 
     wall0 = time.perf_counter()
     try:
-        rec = cached_recording(folder, loaded, opts["recorder"], opts["start"], opts["ticks"])
+        rec, recorder = recording_for(folder, loaded, opts)
+        if recorder != opts["recorder"]:  # the row says whose states it replayed
+            row["settings"] = json.dumps(
+                {**json.loads(row["settings"]), "recorder": recorder}, sort_keys=True
+            )
         if len(rec) <= int(opts["warmup"]):
             raise WbcBenchError(
-                f"the recording by {opts['recorder']} has {len(rec)} states from "
+                f"the recording by {recorder} has {len(rec)} states from "
                 f"t = {opts['start']:g} s (it ended early: the recorder fell or failed); "
                 "set `record_with` or `start` in the timing matrix"
             )
@@ -187,7 +212,7 @@ def dump_problems(
     if (target / "done").exists():
         return sorted(target.glob("t*.npz"))
     target.mkdir(parents=True, exist_ok=True)
-    rec = cached_recording(folder, loaded, options["recorder"], options["start"], options["ticks"])
+    rec, _ = recording_for(folder, loaded, options)
     n = after + ticks
     rec = Recording(rec.scenario, rec.t[:n], rec.q[:n], rec.v[:n])
     saved: list[Path] = []
