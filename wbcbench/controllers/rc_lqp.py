@@ -29,8 +29,10 @@ makes the rest of the chain (the other arm, the neck, the waist) compensate ever
 and with no posture task those light joints drift into their limits in closed loop (measured:
 head and neck past their limits within 1.5 s, hand error 3× lqp's). The preview d is the
 centroidal acceleration of the chain motion LQP 2's task rows ask for, priority after priority
-(damped, dynamically consistent least squares in the null space of the priorities above; no QP),
-with the base and constraint-chain accelerations of the previous tick. The lower priorities
+(damped, dynamically consistent least squares in the null space of the priorities above; no QP).
+Those rows see the base and constraint-chain accelerations q̈_p, which LQP 1 is deciding, and
+every step is linear, so d = D q̈_p + d0 is affine in them and enters LQP 1 as such: whatever
+q̈_p LQP 1 picks, the d it meets is the one that q̈_p calls for. The lower priorities
 matter when one chain carries the waist, both arms and the head (COMAN+-like): eq. (30) and the
 hand and torso rows then fix every chain joint, so the posture rows reach the chain only through
 d (measured on ``comanplus_stand_sway`` with the highest priority alone in d: mean posture error
@@ -138,7 +140,7 @@ class RcLqpConfig(LexicographicConfig):
 
 #: Tikhonov damping of the preview's least squares, relative to the largest squared singular
 #: value of each priority's rows
-PREVIEW_DAMPING = 1e-6
+PREVIEW_DAMPING = 1e-8
 #: singular values below this fraction of the largest count as zero in the preview (their
 #: directions are left to the priorities below)
 PREVIEW_RANK_TOL = 1e-6
@@ -165,6 +167,22 @@ def _solve(
         merge_finals=True,
         slack_free_first=True,
     )
+
+
+@dataclass
+class Preview:
+    """The chains' centroidal accelerations the chains' tasks ask for, as a function of the
+    base and constraint-chain accelerations q̈_p: d = D q̈_p + d0."""
+
+    D: np.ndarray  # (6·n_chains, n_p)
+    d0: np.ndarray  # (6·n_chains,)
+
+    def rows(self, n_p: int, centroid: slice, nx: int) -> np.ndarray:
+        """P (6·n_chains, nx) with P x₁ = q̈_r,G − D q̈_p for x₁ = (q̈_r, f)."""
+        P = np.zeros((self.d0.size, nx))
+        P[:, :n_p] = -self.D
+        P[:, centroid] += np.eye(self.d0.size)
+        return P
 
 
 @dataclass
@@ -204,7 +222,6 @@ class RcLqp(Controller):
         self.last: tuple[HierarchyResult, HierarchyResult | None] | None = None
         self.last_reduced: ReducedModel | None = None
         self.last_output: ControlOutput | None = None
-        self._qdd_plain_prev = np.zeros(self.split.plain.size)  # for the preview
         # actuated indices (into Γ) of the plain coordinates and of the chains
         self._act_plain = self.split.plain[6:] - 6
         self._act_uc = self.split.unconstrained - 6
@@ -228,7 +245,7 @@ class RcLqp(Controller):
         state: RobotState,
         red: ReducedModel,
         terms: list[TaskTerm],
-        preview: np.ndarray | None = None,
+        preview: Preview | None = None,
     ) -> tuple[Constraints, list[PriorityLevel], np.ndarray, np.ndarray]:
         """LQP 1's priority 1 (hard) and levels over x₁ = (q̈_r, f), and the constraint-chain
         torque map Γ_p = G x₁ + γ; ``preview`` (the chains' centroidal accelerations) becomes a
@@ -286,18 +303,18 @@ class RcLqp(Controller):
             levels.append(self._preview_level(preview))
         return hard, levels, G, gamma
 
-    def _preview_level(self, preview: np.ndarray) -> PriorityLevel:
-        """q̈_r,G = d: the chains' centroidal accelerations set to the preview."""
-        sel = np.zeros((preview.size, self.split.n_reduced + self.nc))
-        sel[:, self.centroid_rows] = np.eye(preview.size)
-        return PriorityLevel("preview", A=sel, b=preview)
+    def _preview_level(self, preview: Preview) -> PriorityLevel:
+        """q̈_r,G = D q̈_p + d0: the chains' centroidal accelerations set to the preview."""
+        nx = self.split.n_reduced + self.nc
+        A = preview.rows(self.split.plain.size, self.centroid_rows, nx)
+        return PriorityLevel("preview", A=A, b=preview.d0)
 
     def solve_lqp1(
         self,
         red: ReducedModel,
         hard: Constraints,
         levels: list[PriorityLevel],
-        preview: np.ndarray | None,
+        preview: Preview | None,
         pool: SolverPool,
         timer: StageTimer,
     ) -> HierarchyResult:
@@ -307,10 +324,14 @@ class RcLqp(Controller):
             lv.name = lv.name if lv.name.startswith("lqp1.") else f"lqp1.{lv.name}"
         final = energy_objective("lqp1.energy", red.M_r, self.nc, cfg.wrench_regularization)
         if preview is not None:
-            # ‖Lᵀ (q̈_r − d)‖² with d zero but for the chains' centroidal rows
-            d = np.zeros(final.F.shape[0])
-            d[self.centroid_rows] = preview
-            final = Objective(final.name, final.F, final.F @ d)
+            # ‖Lᵀ (q̈_r − d)‖² with d zero but for the chains' centroidal rows, where it is
+            # D q̈_p + d0: ‖F (x − E x) − F e‖² with E x, e those rows' parts
+            nx = final.F.shape[0]
+            E = np.zeros((nx, nx))
+            E[self.centroid_rows, : self.split.plain.size] = preview.D
+            e = np.zeros(nx)
+            e[self.centroid_rows] = preview.d0
+            final = Objective(final.name, final.F - final.F @ E, final.F @ e)
         final.weight = cfg.final_weight
         return _solve(hard, levels, final, cfg, pool, timer)
 
@@ -397,18 +418,20 @@ class RcLqp(Controller):
         n_uc = red.M_uc.shape[0]
         return _solve(Constraints(n_uc), levels, final, cfg, pool, timer)
 
-    def preview(self, state: RobotState, red: ReducedModel, terms: list[TaskTerm]) -> np.ndarray:
-        """Centroidal accelerations (6·n_chains,) of the chain motion LQP 2's task rows ask for,
-        the base and constraint chain moving as on the previous tick.
+    def preview(self, state: RobotState, red: ReducedModel, terms: list[TaskTerm]) -> Preview:
+        """The chains' centroidal accelerations their tasks (LQP 2's rows) ask for, as an affine
+        function of the base and constraint-chain accelerations q̈_p (which LQP 1 decides).
 
         The priorities are resolved in order, each by damped least squares in the null space of
         the ones above, in the coordinates u = Lᵀ q̈_uc (M_uc = L Lᵀ) where ‖u‖² is the chains'
-        acceleration energy: the motion left over has the least energy.
+        acceleration energy: the motion left over has the least energy. Every step is linear in
+        the right-hand sides, so u = u0 + B q̈_p is carried as the pair (u0, B).
         """
         assert self._rows is not None
         plain, uc = self.split.plain, self.split.unconstrained
         Lt = spd_factor(red.M_uc)  # Lᵀ, upper triangular
-        u = np.zeros(uc.size)
+        u0 = np.zeros(uc.size)
+        B = np.zeros((uc.size, plain.size))
         Z = np.eye(uc.size)  # orthonormal basis of what the priorities so far leave free (in u)
         for _, group in task_levels(terms):
             rows = [(t, self._rows.lqp2[t.task.name]) for t in group]
@@ -416,17 +439,23 @@ class RcLqp(Controller):
             if not rows or not Z.shape[1]:
                 continue
             J = np.vstack([t.J[r] for t, r in rows])
-            b = np.concatenate([t.acc_ref[r] - t.drift[r] for t, r in rows])
-            b -= J[:, plain] @ self._qdd_plain_prev
             Ju = tri_solve(Lt, J[:, uc].T, trans=True).T  # J_uc L⁻ᵀ
-            b -= Ju @ u
+            # residual of the rows at u: [b − J_uc q̈_uc(u0)] − [J_p + J_uc L⁻ᵀ B] q̈_p
+            rhs = np.empty((J.shape[0], 1 + plain.size))
+            rhs[:, 0] = np.concatenate([t.acc_ref[r] - t.drift[r] for t, r in rows]) - Ju @ u0
+            rhs[:, 1:] = -J[:, plain] - Ju @ B
             U, sv, Vt = np.linalg.svd(Ju @ Z, full_matrices=True)
             rank = int(np.sum(sv > PREVIEW_RANK_TOL * sv[0])) if sv.size and sv[0] > 0 else 0
-            s_r = sv[:rank]
-            gain = s_r / (s_r**2 + PREVIEW_DAMPING * sv[0] ** 2) if rank else s_r
-            u += Z @ (Vt[:rank].T @ (gain * (U[:, :rank].T @ b)))
+            if rank:
+                s_r = sv[:rank]
+                gain = s_r / (s_r**2 + PREVIEW_DAMPING * sv[0] ** 2)
+                step = (Z @ Vt[:rank].T) @ (gain[:, None] * (U[:, :rank].T @ rhs))
+                u0 += step[:, 0]
+                B += step[:, 1:]
             Z = Z @ Vt[rank:].T
-        return red.J_G @ tri_solve(Lt, u) + red.dJG_v
+        # q̈_uc = L⁻ᵀ u; d = J_G q̈_uc + J̇_G q̇
+        qdd = tri_solve(Lt, np.column_stack([u0, B]))
+        return Preview(red.J_G @ qdd[:, 1:], red.J_G @ qdd[:, 0] + red.dJG_v)
 
     # -- the step -------------------------------------------------------------------------------
 
@@ -492,7 +521,6 @@ class RcLqp(Controller):
                 return failed_output(
                     n, k, nc, terms, timer.finish(), "LQP 2: " + res2.message, self.last_output
                 )
-        self._qdd_plain_prev = x1[:n_p].copy()
 
         # combined solution
         qdd = np.zeros(n)
