@@ -133,6 +133,21 @@ def test_hot_mode_updates_in_place_and_rebuilds_on_structure_change(name: str) -
 
 
 @pytest.mark.parametrize("name", [n for n in SOLVERS if n.values[0] in BACKENDS])
+def test_hot_mode_rebuilds_after_a_failed_solve(name: str) -> None:
+    """A failed solve leaves a failed (possibly diverged) iterate in the native object: the next
+    call must not start from it, but rebuild from the last solution that succeeded."""
+    solver = make_solver(name, mode="hot")
+    if solver.mode != "hot":
+        pytest.skip(f"{name} has no persistent native object")
+    good = infeasible_qp()
+    good = dataclasses.replace(good, b=np.array([-1.0]))  # Σx = −1 with x ≤ 0: feasible
+    assert solver.solve(good).success and solver.builds == 1
+    assert not solver.solve(infeasible_qp()).success  # same structure: an in-place update
+    after = solver.solve(good)
+    assert after.success and after.rebuilt and solver.builds == 2
+
+
+@pytest.mark.parametrize("name", [n for n in SOLVERS if n.values[0] in BACKENDS])
 def test_hot_mode_sees_in_place_changes_of_caller_arrays(name: str) -> None:
     solver = make_solver(name, tier="mid", mode="hot")
     p = dataclasses.replace(PROBLEMS[1], g=PROBLEMS[1].g.copy())

@@ -148,6 +148,10 @@ class QPSolver(ABC):
             sol.internal_time_covers = self.internal_time_covers
         if sol.success and sol.x is not None:
             self.previous = sol
+        elif self.mode == "hot":
+            # the native object's iterate is the failed one (possibly diverged): the next call
+            # rebuilds it, warm-started from the last solution that succeeded
+            self._native = None
         sol.call_time = time.perf_counter() - t_call
         if raise_on_failure and not sol.success:
             raise SolverError(
