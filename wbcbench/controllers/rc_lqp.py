@@ -432,27 +432,34 @@ class RcLqp(Controller):
         Lt = spd_factor(red.M_uc)  # Lᵀ, upper triangular
         u0 = np.zeros(uc.size)
         B = np.zeros((uc.size, plain.size))
-        Z = np.eye(uc.size)  # orthonormal basis of what the priorities so far leave free (in u)
-        for _, group in task_levels(terms):
-            rows = [(t, self._rows.lqp2[t.task.name]) for t in group]
-            rows = [(t, r) for t, r in rows if r.size]
-            if not rows or not Z.shape[1]:
-                continue
+        Z: np.ndarray | None = None  # orthonormal basis of what is left free (in u); None: all
+        groups = [
+            [(t, r) for t in group if (r := self._rows.lqp2[t.task.name]).size]
+            for _, group in task_levels(terms)
+        ]
+        groups = [g for g in groups if g]
+        for i, rows in enumerate(groups):
+            last = i == len(groups) - 1
             J = np.vstack([t.J[r] for t, r in rows])
             Ju = tri_solve(Lt, J[:, uc].T, trans=True).T  # J_uc L⁻ᵀ
             # residual of the rows at u: [b − J_uc q̈_uc(u0)] − [J_p + J_uc L⁻ᵀ B] q̈_p
             rhs = np.empty((J.shape[0], 1 + plain.size))
             rhs[:, 0] = np.concatenate([t.acc_ref[r] - t.drift[r] for t, r in rows]) - Ju @ u0
             rhs[:, 1:] = -J[:, plain] - Ju @ B
-            U, sv, Vt = np.linalg.svd(Ju @ Z, full_matrices=True)
+            U, sv, Vt = np.linalg.svd(Ju if Z is None else Ju @ Z, full_matrices=not last)
             rank = int(np.sum(sv > PREVIEW_RANK_TOL * sv[0])) if sv.size and sv[0] > 0 else 0
             if rank:
                 s_r = sv[:rank]
                 gain = s_r / (s_r**2 + PREVIEW_DAMPING * sv[0] ** 2)
-                step = (Z @ Vt[:rank].T) @ (gain[:, None] * (U[:, :rank].T @ rhs))
+                V_r = Vt[:rank].T if Z is None else Z @ Vt[:rank].T
+                step = V_r @ (gain[:, None] * (U[:, :rank].T @ rhs))
                 u0 += step[:, 0]
                 B += step[:, 1:]
-            Z = Z @ Vt[rank:].T
+            if last:
+                break
+            Z = Vt[rank:].T if Z is None else Z @ Vt[rank:].T
+            if not Z.shape[1]:
+                break
         # q̈_uc = L⁻ᵀ u; d = J_G q̈_uc + J̇_G q̇
         qdd = tri_solve(Lt, np.column_stack([u0, B]))
         return Preview(red.J_G @ qdd[:, 1:], red.J_G @ qdd[:, 0] + red.dJG_v)
