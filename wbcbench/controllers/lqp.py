@@ -104,11 +104,12 @@ def task_levels(terms: list[TaskTerm]) -> list[tuple[int, list[TaskTerm]]]:
     return sorted(levels.items())
 
 
-def energy_objective(name: str, M: np.ndarray, n_extra: int, reg: float) -> Objective:
-    """Final objective ‖Lᵀ q̈‖² + reg ‖f‖² = q̈ᵀ M q̈ + reg ‖f‖², with M = L Lᵀ (Cholesky)."""
-    n = M.shape[0]
+def energy_objective(name: str, Lt: np.ndarray, n_extra: int, reg: float) -> Objective:
+    """Final objective ‖Lᵀ q̈‖² + reg ‖f‖² = q̈ᵀ M q̈ + reg ‖f‖², from the upper Cholesky
+    factor ``Lt`` = Lᵀ of M = L Lᵀ."""
+    n = Lt.shape[0]
     F = np.zeros((n + n_extra, n + n_extra))
-    F[:n, :n] = spd_factor(M)  # Lᵀ, upper triangular
+    F[:n, :n] = Lt
     F[n:, n:] = np.sqrt(reg) * np.eye(n_extra)
     return Objective(name, F, np.zeros(n + n_extra))
 
@@ -234,7 +235,7 @@ class Lqp(Controller):
             levels.append(PriorityLevel(f"p{p}", A=np.hstack([J, np.zeros((J.shape[0], nc))]), b=r))
         for i, lv in enumerate(levels):
             lv.weight = level_weight(cfg.weights, i)
-        final = energy_objective("energy", M, nc, cfg.wrench_regularization)
+        final = energy_objective("energy", spd_factor(M), nc, cfg.wrench_regularization)
         final.weight = cfg.final_weight
         return dyn, levels, final, G, gamma
 

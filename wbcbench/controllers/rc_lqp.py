@@ -322,7 +322,8 @@ class RcLqp(Controller):
         for i, lv in enumerate(levels):
             lv.weight = level_weight(cfg.weights, i)
             lv.name = lv.name if lv.name.startswith("lqp1.") else f"lqp1.{lv.name}"
-        final = energy_objective("lqp1.energy", red.M_r, self.nc, cfg.wrench_regularization)
+        Lt = spd_factor(red.M_r)  # Lᵀ of M_r = L Lᵀ
+        final = energy_objective("lqp1.energy", Lt, self.nc, cfg.wrench_regularization)
         if preview is not None:
             # ‖Lᵀ (q̈_r − d)‖² with d zero but for the chains' centroidal rows, where it is
             # D q̈_p + d0: ‖F (x − E x) − F e‖² with E x, e those rows' parts
@@ -406,7 +407,7 @@ class RcLqp(Controller):
         for i, lv in enumerate(levels):
             lv.weight = level_weight(cfg.weights, i)
             lv.name = lv.name if lv.name.startswith("lqp2.") else f"lqp2.{lv.name}"
-        final = energy_objective("lqp2.energy", red.M_uc, 0, cfg.wrench_regularization)
+        final = energy_objective("lqp2.energy", red.M_uc_factor, 0, cfg.wrench_regularization)
         if cfg.lqp2_energy == "whole":
             # q̈ᵀ M q̈ of the whole robot with LQP 1's q̈ fixed: q̈_ucᵀ M_uc q̈_uc + 2 q̈_ucᵀ M_up q̈_p
             # = ‖Lᵀ q̈_uc − f‖² + const with L f = −M_up q̈_p (M_uc = L Lᵀ)
@@ -429,7 +430,7 @@ class RcLqp(Controller):
         """
         assert self._rows is not None
         plain, uc = self.split.plain, self.split.unconstrained
-        Lt = spd_factor(red.M_uc)  # Lᵀ, upper triangular
+        Lt = red.M_uc_factor  # Lᵀ, upper triangular
         u0 = np.zeros(uc.size)
         B = np.zeros((uc.size, plain.size))
         Z: np.ndarray | None = None  # orthonormal basis of what is left free (in u); None: all

@@ -36,6 +36,7 @@ velocities.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 
@@ -43,7 +44,7 @@ import numpy as np
 import pinocchio as pin
 
 from wbcbench.dynamics.chains import CENTROID_DIM, ChainSplit
-from wbcbench.dynamics.dense import skew, spd_inverse, spd_solve
+from wbcbench.dynamics.dense import skew, spd_factor, spd_inverse, spd_solve
 from wbcbench.dynamics.state import RobotState
 
 
@@ -109,6 +110,11 @@ class ReducedModel:
     @property
     def n_plain(self) -> int:
         return int(self.split.plain.size)
+
+    @functools.cached_property
+    def M_uc_factor(self) -> np.ndarray:
+        """Upper Cholesky factor Lᵀ of M_uc = L Lᵀ (computed once, on first use)."""
+        return spd_factor(self.M_uc)
 
     def task(self, J: np.ndarray, drift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A task J q̈ + J̇ q̇ in the reduced space (eq. 22): (J J̄_r (m, n_r), drift (m,)).
