@@ -481,14 +481,16 @@ class RcLqp(Controller):
             self._rows = self._classify(red, terms)
 
         t1 = time.perf_counter()
-        preview = None  # the chains' centroidal accelerations: LQP 1's energy target
-        preview_level = None  # or its level
+        # the chains' centroidal accelerations: a level of LQP 1 (priority) or its energy's target
+        preview = level = target = None
         if cfg.centroid_preview != "off" and uc.size:
             preview = self.preview(state, red, terms)
-            if cfg.centroid_preview == "priority":
-                preview, preview_level = None, preview
-        hard1, levels1, G1, gamma1 = self.lqp1_levels(state, red, terms, preview_level)
-        res1 = self.solve_lqp1(red, hard1, levels1, preview, self.pool1, timer)
+        if cfg.centroid_preview == "priority":
+            level = preview
+        else:
+            target = preview
+        hard1, levels1, G1, gamma1 = self.lqp1_levels(state, red, terms, level)
+        res1 = self.solve_lqp1(red, hard1, levels1, target, self.pool1, timer)
         t_lqp1 = time.perf_counter() - t1
         if not res1.ok:
             return failed_output(
@@ -513,9 +515,9 @@ class RcLqp(Controller):
                     reached = x1[n_p:n_r] + w
                     sel = np.zeros((n_r - n_p, n_r + nc))
                     sel[:, n_p:n_r] = np.eye(n_r - n_p)
-                    hard1, levels1b, G1, gamma1 = self.lqp1_levels(state, red, terms, preview_level)
+                    hard1, levels1b, G1, gamma1 = self.lqp1_levels(state, red, terms, level)
                     levels1b.append(PriorityLevel("coupling", A=sel, b=reached))
-                    res1 = self.solve_lqp1(red, hard1, levels1b, preview, self.pool1b, timer)
+                    res1 = self.solve_lqp1(red, hard1, levels1b, target, self.pool1b, timer)
                     t_lqp1 += time.perf_counter() - t1
                     if not res1.ok:
                         msg = "LQP 1 (coupling): " + res1.message
