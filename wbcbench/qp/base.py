@@ -133,8 +133,7 @@ class QPSolver(ABC):
                 sol = self._solve_hot(problem, x0)
             else:
                 sol = self._solve_fresh(problem, self._guess(problem, x0), keep=False)
-        except Exception as exc:  # a failed row, never a crashed sweep
-            self._native = None
+        except Exception as exc:  # a failed row, never a crashed sweep (hot: rebuilt below)
             sol = Solution(status=SolutionStatus.FAILED, message=f"{type(exc).__name__}: {exc}")
         if sol.success and (sol.x is None or not np.isfinite(sol.x).all()):
             sol.status = SolutionStatus.NUMERICAL
