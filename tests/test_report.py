@@ -14,6 +14,7 @@ from wbcbench.report import papers as P
 from wbcbench.report.plots import write_plots
 from wbcbench.report.solvers import write_report
 from wbcbench.report.tables import TABLES, build_tables, write_tables
+from wbcbench.scenarios.load import LoadedScenario
 
 SMOKE = Path(__file__).resolve().parents[1] / "sweeps" / "smoke.yaml"
 
@@ -202,6 +203,24 @@ def test_rc_lqp_dof_table_has_one_row_per_robot_with_both_medians(tmp_path: Path
     assert pd.isna(frame.loc[29, "ours ratio"])
 
 
+def _s2_row(loaded: LoadedScenario, rid: str, config: str, **extra: object) -> dict:
+    """A to_osf tracking row of Scenario #2 (19 s, ok unless ``extra`` says otherwise)."""
+    row = dict(
+        run_id=rid,
+        scenario=loaded.name,
+        scenario_hash=loaded.hash,
+        controller="to_osf",
+        controller_config=config,
+        solver="proxqp",
+        mode="cold",
+        status="ok",
+        sim_duration_s=19.0,
+        kind="tracking",
+    )
+    row.update(extra)
+    return row
+
+
 def test_to_osf_s2_ratio_of_total_amendments_with_the_run_status(tmp_path: Path) -> None:
     """Priority weighting amends 3 per tick, identical 0.5; the identical run fell at 10 s."""
     import numpy as np
@@ -218,19 +237,8 @@ def test_to_osf_s2_ratio_of_total_amendments_with_the_run_status(tmp_path: Path)
         t = np.arange(0.0, end, 0.005)
         log = {"t": t, "diag.amend.com": np.full(t.size, amend)}
         log["diag.amend.r_hand_pos"] = np.where(t >= 9.0, amend, 100.0)
-        row = dict(
-            run_id=rid,
-            scenario=loaded.name,
-            scenario_hash=loaded.hash,
-            controller="to_osf",
-            controller_config=config,
-            solver="proxqp",
-            mode="cold",
-            status=status,
-            message="base height 0.3 m at t = 10.000 s" if status == "fell" else "",
-            sim_duration_s=end,
-            kind="tracking",
-        )
+        message = "base height 0.3 m at t = 10.000 s" if status == "fell" else ""
+        row = _s2_row(loaded, rid, config, status=status, message=message, sim_duration_s=end)
         store.add_run(row, [], log)
     shortened = dict(row, run_id="short", status="ok", scenario_hash="other", sim_duration_s=0.5)
     store.add_run(shortened, [], {"t": np.zeros(1), "diag.amend.com": np.ones(1)})
@@ -287,18 +295,7 @@ def test_to_osf_s2_recognises_the_identical_weighting_config(tmp_path: Path) -> 
     store.record_scenario(loaded.name, loaded.hash, str(loaded.path))
     for rid, config, amend in (("p", "{}", 2.0), ("i", '{"weighting": "identical"}', 0.5)):
         t = np.arange(0.0, 19.0, 0.01)
-        row = dict(
-            run_id=rid,
-            scenario=loaded.name,
-            scenario_hash=loaded.hash,
-            controller="to_osf",
-            controller_config=config,
-            solver="proxqp",
-            mode="cold",
-            status="ok",
-            sim_duration_s=19.0,
-            kind="tracking",
-        )
+        row = _s2_row(loaded, rid, config)
         store.add_run(row, [], {"t": t, "diag.amend.com": np.full(t.size, amend)})
     table = TABLES["to_osf_s2"](load_results(tmp_path))
     assert table.frame is not None
