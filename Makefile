@@ -5,15 +5,47 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv test test-fast lint bench bench-full bench-micro reference models clean
+# The tested dependency set: every distribution at an exact version (pip-compile's output).
+# The environment is rebuilt from scratch whenever the lock or pyproject.toml changes, so it
+# holds exactly what the lock says; `pip check` proves the set consistent.
+LOCK              := requirements/lock.txt
+PIP_VERSION       := 26.3
+PIP_TOOLS_VERSION := 7.6.2
+LOCK_VENV         := .venv-lock
+LOCK_FLAGS        := --extra dev --all-build-deps --allow-unsafe --strip-extras \
+                     --no-emit-index-url --no-emit-find-links --no-emit-trusted-host
+
+.PHONY: venv test test-fast lint bench bench-full bench-micro reference models clean lock upgrade
 
 venv: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
+	rm -rf $(VENV)
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[dev]"
+	$(PY) -m pip install --quiet pip==$(PIP_VERSION)
+	$(PY) -m pip install --quiet --no-deps -r $(LOCK)
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	$(PY) -m pip check
 	touch $(STAMP)
+
+# pip-tools lives in its own environment, so that the tested one holds only the lock
+$(LOCK_VENV)/bin/pip-compile:
+	$(PYTHON) -m venv $(LOCK_VENV)
+	$(LOCK_VENV)/bin/python -m pip install --quiet pip==$(PIP_VERSION) pip-tools==$(PIP_TOOLS_VERSION)
+
+# After editing pyproject.toml's dependencies: re-resolve, keeping every existing pin it can.
+lock: $(LOCK_VENV)/bin/pip-compile
+	$(LOCK_VENV)/bin/pip-compile --quiet $(LOCK_FLAGS) --output-file $(LOCK) pyproject.toml
+
+# The newest versions pyproject.toml allows: rewrite the lock, show what moved, run the tests.
+upgrade: $(LOCK_VENV)/bin/pip-compile
+	grep -E '^[A-Za-z0-9]' $(LOCK) > $(LOCK_VENV)/before.txt
+	$(LOCK_VENV)/bin/pip-compile --quiet --upgrade $(LOCK_FLAGS) --output-file $(LOCK) pyproject.toml
+	grep -E '^[A-Za-z0-9]' $(LOCK) > $(LOCK_VENV)/after.txt
+	@echo "== what the upgrade changed (< before, > after):"
+	@diff $(LOCK_VENV)/before.txt $(LOCK_VENV)/after.txt | grep '^[<>]' || echo "   nothing: the lock is current"
+	@$(MAKE) --no-print-directory test || { echo "== the tests FAIL with the upgraded lock;" \
+		"'git checkout $(LOCK)' returns to the tested set"; exit 1; }
 
 test: $(STAMP)
 	$(PY) -m pytest -q
@@ -48,4 +80,4 @@ reference: $(STAMP)
 		results/reference/figures/*.svg
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(LOCK_VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

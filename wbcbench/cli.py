@@ -30,6 +30,7 @@ from wbcbench.errors import WbcBenchError
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
+    from wbcbench.bench.provenance import describe_lock_status, lock_status
     from wbcbench.controllers.registry import CONTROLLERS
     from wbcbench.qp import all_solvers
     from wbcbench.qp.hierarchy import STRATEGY_SUMMARY
@@ -52,6 +53,9 @@ def _cmd_list(args: argparse.Namespace) -> int:
     print("scenarios:")
     for name in available_scenarios():
         print(f"  {name}")
+    print("environment (installed packages against the lock):")
+    for line in describe_lock_status(lock_status()):
+        print(f"  {line}")
     return 0
 
 

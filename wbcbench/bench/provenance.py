@@ -5,6 +5,7 @@ from __future__ import annotations
 import datetime as _dt
 import os
 import platform
+import re
 import subprocess
 from importlib import metadata
 from pathlib import Path
@@ -13,6 +14,12 @@ from typing import Any
 import wbcbench
 
 REPO = Path(__file__).resolve().parents[2]
+
+#: the tested dependency set: every distribution, direct and transitive, at an exact version
+LOCK = REPO / "requirements" / "lock.txt"
+
+#: installed but never part of the lock: the project itself and the installer
+_NOT_LOCKED = frozenset({"wbcbench", "pip"})
 
 #: distributions whose versions every results file records
 PACKAGES = (
@@ -76,6 +83,58 @@ def package_versions() -> dict[str, str]:
     return out
 
 
+def _normalise(name: str) -> str:
+    """A distribution name in its canonical form (PEP 503): ``Jinja2`` → ``jinja2``."""
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+def read_lock(path: Path = LOCK) -> dict[str, str]:
+    """The ``name==version`` pins of a pip-compile lock file, by canonical name."""
+    pins = {}
+    for line in path.read_text(encoding="utf-8").splitlines():
+        match = re.match(r"^([A-Za-z0-9][A-Za-z0-9._-]*)==([^\s;#]+)", line)
+        if match:
+            pins[_normalise(match.group(1))] = match.group(2)
+    return pins
+
+
+def installed_versions() -> dict[str, str]:
+    """Every installed distribution of this interpreter, by canonical name."""
+    return {_normalise(d.metadata["Name"]): d.version for d in metadata.distributions()}
+
+
+def lock_status(path: Path = LOCK) -> dict[str, Any]:
+    """Whether the environment is the locked one.
+
+    Returns:
+        ``{"lock": path, "matches": bool, "differs": {name: {"locked": v, "installed": v}}}``,
+        where a side that has no such package says ``"-"``; ``matches`` is ``None`` (and
+        ``differs`` empty) when there is no lock file, e.g. in an installed wheel.
+    """
+    if not path.is_file():
+        return {"lock": str(path), "matches": None, "differs": {}}
+    locked = read_lock(path)
+    installed = {k: v for k, v in installed_versions().items() if k not in _NOT_LOCKED}
+    differs = {
+        name: {"locked": locked.get(name, "-"), "installed": installed.get(name, "-")}
+        for name in sorted(set(locked) | set(installed))
+        if locked.get(name) != installed.get(name)
+    }
+    return {"lock": str(path), "matches": not differs, "differs": differs}
+
+
+def describe_lock_status(status: dict[str, Any]) -> list[str]:
+    """The lock comparison as lines for a terminal (one per differing package)."""
+    if status["matches"] is None:
+        return [f"no lock file at {status['lock']}: versions unchecked"]
+    if status["matches"]:
+        return [f"matches {status['lock']}"]
+    lines = [f"DIFFERS from {status['lock']} ({len(status['differs'])} packages):"]
+    for name, d in status["differs"].items():
+        lines.append(f"  {name:<28} locked {d['locked']:<14} installed {d['installed']}")
+    return lines
+
+
 def provenance() -> dict[str, Any]:
     return {
         "wbcbench": wbcbench.__version__,
@@ -87,4 +146,5 @@ def provenance() -> dict[str, Any]:
         "os": platform.platform(),
         "python": platform.python_version(),
         "packages": package_versions(),
+        "environment": lock_status(),
     }
