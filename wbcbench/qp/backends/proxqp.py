@@ -53,10 +53,12 @@ class ProxQPSolver(QPSolver):
         t0 = time.perf_counter()
         qp = proxqp.dense.QP(problem.n, problem.n_eq, problem.n_in, box)
         apply_settings(qp.settings, opts, LIBRARY)
+        # A fresh object has no previous result: WARM_START_WITH_PREVIOUS_RESULT would start
+        # from its uninitialised workspace (whatever the heap held, so runs differed between
+        # processes). It starts from the guess or ProxQP's own initial guess, and only the
+        # later in-place updates of a kept object start from its last iterate.
         if guess is not None:
             qp.settings.initial_guess = proxqp.InitialGuess.WARM_START
-        elif keep:
-            qp.settings.initial_guess = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
         if box:
             qp.init(problem.H, problem.g, problem.A, problem.b, problem.C, problem.l,
                     problem.u, lb, ub)  # fmt: skip
@@ -65,7 +67,7 @@ class ProxQPSolver(QPSolver):
         t1 = time.perf_counter()
         self._run(qp, problem, guess)
         t2 = time.perf_counter()
-        if guess is not None and keep:
+        if keep:
             qp.settings.initial_guess = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
         self._native = qp if keep else None
         return self._result(qp, problem, t1 - t0, t2 - t1)
