@@ -30,6 +30,11 @@ def test_stand_sway_tracks_the_com_within_half_a_millimetre(scenario: str, tmp_p
     assert metrics[("*", "solve_failures")] == 0.0
     # the commanded wrenches respect the cone; the simulated ones carry the load
     assert metrics[("*", "cop_violation_pred")] <= 1e-6
+    # the simulated contact, over the window and while loaded: finite and within the box
+    for key in ("cop", "friction", "yaw"):
+        assert np.isfinite(metrics[("*", f"{key}_violation_sim")]), key
+    assert metrics[("*", "cop_violation_sim")] <= 1e-3
+    assert metrics[("*", "unloaded_contact_ticks_sim")] == 0
     log = pd.read_parquet(next((tmp_path / "logs").glob("*.parquet")))
     simulated = log["wrench_sim.l_sole.fz"] + log["wrench_sim.r_sole.fz"]
     predicted = log["wrench_pred.l_sole.fz"] + log["wrench_pred.r_sole.fz"]

@@ -3,8 +3,10 @@
 * tracking: per task and error part, ``err_mean`` / ``err_max`` (``err_rot_mean`` … for the
   orientation part of pose tasks) over the scenario's window, and ``err_final``;
 * constraints: torque-limit excess (commanded), friction / CoP / normal-force violations of the
-  predicted (commanded) and simulated wrenches, each the maximum over the run; for kinematic
-  runs instead, ``joint_limit_violation`` [rad] and ``min_collision_distance`` [m];
+  predicted (commanded) and simulated wrenches, each the maximum over the window (friction,
+  CoP and yaw on the ticks where the contact carries load; ``unloaded_contact_ticks_*`` counts
+  the others); for kinematic runs instead, ``joint_limit_violation`` [rad] and
+  ``min_collision_distance`` [m];
 * failures: failed control ticks;
 * amendments: ``amend_mean`` / ``amend_max`` per task over the window, for controllers that
   report ``diag.amend.<task>`` (to_osf);
@@ -31,6 +33,12 @@ class MetricRow:
     metric: str
     value: float
     unit: str
+
+
+def loaded_normal_force(contact: PlaneContact) -> float:
+    """The normal force [N] from which a contact counts as carrying load: half its minimum
+    normal force, and at least 1 N."""
+    return max(1.0, 0.5 * contact.fmin)
 
 
 def _metric_name(part: str, stat: str, parts: list[str]) -> str:
@@ -65,22 +73,33 @@ def run_metrics(
                 rows.append(MetricRow(task, _metric_name(part, stat, parts), value, unit))
 
     # Kinematic runs log no torques or wrenches, but joint margins and collision distances.
+    # Constraint violations count inside the metrics window only (the touchdown before it is
+    # not the controller's doing), and the friction / CoP / yaw ratios only on ticks where the
+    # contact carries load: at f_z → 0 they are 0/0, not a violation.
     if all(f"tau.{j}" in cols for j in result.robot.joint_names):
-        taus = np.column_stack([cols[f"tau.{j}"] for j in result.robot.joint_names])
-        excess = np.max(np.abs(taus) - result.tau_max[None, :])
+        taus = np.column_stack([cols[f"tau.{j}"] for j in result.robot.joint_names])[mask]
+        excess = np.max(np.abs(taus) - result.tau_max[None, :], initial=0.0)
         rows.append(MetricRow("*", "torque_limit_excess", max(0.0, float(excess)), "N·m"))
         for source in ("pred", "sim"):
             worst = {"normal": 0.0, "friction": 0.0, "cop": 0.0, "yaw": 0.0}
+            unloaded = 0
             for contact in contacts:
                 w6 = np.column_stack([cols[f"wrench_{source}.{contact.frame}.{c}"] for c in WRENCH])
-                for wrench in w6:
+                loaded = loaded_normal_force(contact)
+                for wrench in w6[mask]:
                     if not np.all(np.isfinite(wrench)):
                         continue
-                    for key, value in contact.violation(wrench).items():
-                        worst[key] = max(worst[key], value)
+                    violation = contact.violation(wrench)
+                    worst["normal"] = max(worst["normal"], violation["normal"])
+                    if wrench[2] < loaded:
+                        unloaded += 1
+                        continue
+                    for key in ("friction", "cop", "yaw"):
+                        worst[key] = max(worst[key], violation[key])
             units = {"normal": "N", "friction": "-", "cop": "m", "yaw": "m"}
             for key, value in worst.items():
                 rows.append(MetricRow("*", f"{key}_violation_{source}", value, units[key]))
+            rows.append(MetricRow("*", f"unloaded_contact_ticks_{source}", unloaded, "ticks"))
     if "joint_margin" in cols:
         violation = max(0.0, -float(np.min(cols["joint_margin"])))
         rows.append(MetricRow("*", "joint_limit_violation", violation, "rad"))
