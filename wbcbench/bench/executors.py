@@ -53,6 +53,40 @@ def run_tracking(
     return record
 
 
+def run_tracking_guarded(
+    scenario_path: str,
+    overrides: tuple[str, ...],
+    settings: Any,
+    rid: str,
+    version: str,
+    log_every: int,
+    check_tol: float | None,
+    wall_limit_s: float | None,
+) -> RunRecord:
+    """:func:`run_tracking` in a child process under the wall-clock guard
+    (:mod:`wbcbench.bench.guard`): a run that hangs or crashes becomes a ``failed`` row.
+
+    ``wall_limit_s`` defaults to :func:`~wbcbench.bench.guard.tracking_deadline` of the
+    scenario's duration.
+    """
+    from wbcbench.bench.guard import call_with_deadline, can_guard, tracking_deadline
+    from wbcbench.bench.runner import RunRecord, base_row
+    from wbcbench.scenarios.load import load_scenario
+
+    args = (scenario_path, overrides, settings, rid, version, log_every, check_tol)
+    if not can_guard():
+        return run_tracking(*args)
+    loaded = load_scenario(scenario_path, list(overrides))
+    seconds = wall_limit_s or tracking_deadline(loaded.spec.duration)
+    outcome = call_with_deadline(run_tracking, args, seconds)
+    if outcome.ok:
+        record: RunRecord = outcome.value
+        return record
+    row = base_row(loaded, settings, rid, version)
+    row.update(status="failed", fell=False, message=outcome.message, ticks=0, failures=0)
+    return RunRecord(row, [], None)
+
+
 def _arguments(job: Job, rid: str, version: str) -> tuple[Any, ...]:
     return (
         job.scenario_path,
@@ -62,6 +96,7 @@ def _arguments(job: Job, rid: str, version: str) -> tuple[Any, ...]:
         version,
         int(job.options.get("log_every", 1)),
         job.options.get("check_tol"),
+        job.options.get("wall_limit_s"),
     )
 
 
@@ -81,7 +116,7 @@ class SerialExecutor:
 
     def run(self, jobs: Sequence[tuple[Job, str]], version: str) -> Iterator[tuple[Job, Any]]:
         for job, rid in jobs:
-            yield job, run_tracking(*_arguments(job, rid, version))
+            yield job, run_tracking_guarded(*_arguments(job, rid, version))
 
 
 class DaskExecutor:
@@ -98,17 +133,20 @@ class DaskExecutor:
         self._client: Any = None
 
     def __enter__(self) -> DaskExecutor:
+        import dask
         from dask.distributed import Client, LocalCluster
 
         if self.address:
             self._client = Client(self.address)
         else:
-            self._cluster = LocalCluster(
-                n_workers=self.n_workers,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-            )
+            # non-daemonic workers may start the child process of each run's wall-clock guard
+            with dask.config.set({"distributed.worker.daemon": False}):
+                self._cluster = LocalCluster(
+                    n_workers=self.n_workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                )
             self._client = Client(self._cluster)
         return self
 
@@ -129,7 +167,9 @@ class DaskExecutor:
         futures = {}
         for job, rid in jobs:
             # pure=False: identical arguments must still run (a rerun after a code change)
-            future = self._client.submit(run_tracking, *_arguments(job, rid, version), pure=False)
+            future = self._client.submit(
+                run_tracking_guarded, *_arguments(job, rid, version), pure=False
+            )
             futures[future] = job
         try:
             for future in as_completed(futures):

@@ -94,6 +94,12 @@ class MatrixSpec(Strict):
         "scenario hash each); empty: the scenario's own robot",
     )
     skip: list[SkipRule] = Field(default_factory=list)
+    wall_limit_s: float | None = Field(
+        None,
+        gt=0,
+        description="wall-clock guard of each run [s]: a run still going then (a hung solver) "
+        "is stopped and recorded as failed; default from the scenario's duration",
+    )
 
 
 class TrackingSpec(MatrixSpec):
@@ -509,6 +515,8 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                     options = dict(check_tol=matrix.check_tol)
                     if matrix.log_every != 1:
                         options["log_every"] = matrix.log_every
+                if matrix.wall_limit_s is not None:
+                    options["wall_limit_s"] = matrix.wall_limit_s
                 for controller, explicit in controllers:
                     reason = controller_class(controller).applies_to(loaded.spec)
                     if reason:
@@ -633,7 +641,7 @@ def run_sweep(
     from wbcbench.bench.executors import make_executor
     from wbcbench.bench.results import ResultsStore
     from wbcbench.bench.runner import code_version, run_id
-    from wbcbench.bench.timing import run_hls_scaling, run_timing_job, skipped_record
+    from wbcbench.bench.timing import guarded_timing_job, run_hls_scaling, skipped_record
 
     store = ResultsStore(out)
     version = code_version(store)
@@ -689,7 +697,7 @@ def run_sweep(
             if budget[0] <= 0:
                 break
             bar.set_postfix_str(job.label[:60])
-            finished(job, run_timing_job(job, rid, version, store.folder))
+            finished(job, guarded_timing_job(job, rid, version, store.folder))
             bar.update()
     if budget[0] <= 0 and max_jobs is not None:
         return report

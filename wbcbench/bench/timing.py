@@ -115,6 +115,27 @@ def skipped_record(job: Job, rid: str, version: str, reason: str) -> RunRecord:
     return RunRecord(row, [], None)
 
 
+def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
+    """:func:`run_timing_job` in a child process under the wall-clock guard
+    (:mod:`wbcbench.bench.guard`): a run that hangs or crashes becomes a ``failed`` row."""
+    from wbcbench.bench.guard import call_with_deadline, can_guard, timing_deadline
+
+    if not can_guard():
+        return run_timing_job(job, rid, version, folder)
+    spec = job.loaded.spec
+    window = spec.metrics.window
+    seconds = job.options.get("wall_limit_s") or timing_deadline(
+        window[1] if window is not None else spec.duration, int(job.options["ticks"])
+    )
+    outcome = call_with_deadline(run_timing_job, (job, rid, version, str(folder)), seconds)
+    if outcome.ok:
+        record: RunRecord = outcome.value
+        return record
+    row = base_row(job.loaded, job.settings, rid, version, "timing", job.extra)
+    row.update(status="failed", fell=False, message=outcome.message, ticks=0, failures=0)
+    return RunRecord(row, [], None)
+
+
 def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
     """Replay one controller × solver × mode on the scenario's recorded window; never raises."""
     loaded: LoadedScenario = job.loaded

@@ -89,13 +89,13 @@ def run_metrics(
                 for wrench in w6[mask]:
                     if not np.all(np.isfinite(wrench)):
                         continue
-                    violation = contact.violation(wrench)
-                    worst["normal"] = max(worst["normal"], violation["normal"])
+                    measured = contact.violation(wrench)
+                    worst["normal"] = max(worst["normal"], measured["normal"])
                     if wrench[2] < loaded:
                         unloaded += 1
                         continue
                     for key in ("friction", "cop", "yaw"):
-                        worst[key] = max(worst[key], violation[key])
+                        worst[key] = max(worst[key], measured[key])
             units = {"normal": "N", "friction": "-", "cop": "m", "yaw": "m"}
             for key, value in worst.items():
                 rows.append(MetricRow("*", f"{key}_violation_{source}", value, units[key]))
