@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from wbcbench.cli import main
 
@@ -55,3 +56,49 @@ def test_replay_solves_a_dumped_problem_again(tmp_path: Path, capsys) -> None:
     assert main(["replay", str(path), "--solver", "daqp", "--solver", "proxqp"]) == 0
     printed = capsys.readouterr().out
     assert "daqp" in printed and "proxqp" in printed and "solved" in printed
+
+
+TINY_SET = ["--set", "duration=0.05", "--set", "metrics.window=[0.0, 0.05]"]
+
+
+def test_sweep_exit_codes_retry_failed_and_force(
+    tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from wbcbench.qp.backends.daqp import DAQPSolver
+
+    out = str(tmp_path / "out")
+    args = ["sweep", "--scenario", "tocabi_stand_sway", "--controller", "qp_wbc", *TINY_SET]
+    args += ["--solver", "daqp", "--solver", "quadprog", "--out", out]
+    real = DAQPSolver._solve_fresh
+
+    def raises(self, problem, guess, keep):
+        raise RuntimeError("injected backend crash")
+
+    monkeypatch.setattr(DAQPSolver, "_solve_fresh", raises)
+    assert main(args) == 1  # one row failed: the sweep says so in its exit code
+    text = capsys.readouterr().out
+    assert "not ok: 1 failed of 2 planned rows" in text
+    assert main(args) == 1  # a rerun resumes the failed row and still reports it
+    assert "0 rows computed, 2 already in" in capsys.readouterr().out
+
+    monkeypatch.setattr(DAQPSolver, "_solve_fresh", real)
+    assert main([*args, "--retry-failed"]) == 0  # only the failed row is recomputed
+    assert "1 rows computed, 1 already in" in capsys.readouterr().out
+    runs = pd.read_csv(Path(out) / "runs.csv")
+    assert len(runs) == 2 and (runs["status"] == "ok").all()
+    assert main([*args, "--force"]) == 0  # every row is recomputed, none duplicated
+    assert "2 rows computed, 0 already in" in capsys.readouterr().out
+    runs = pd.read_csv(Path(out) / "runs.csv")
+    assert len(runs) == 2 and runs["run_id"].is_unique
+
+
+def test_cli_timing_falls_back_to_a_recorder_that_stands(tmp_path: Path, capsys) -> None:
+    """qp_wbc falls on the Ahn scenarios: the default chain records with lqp instead."""
+    out = tmp_path / "t"
+    args = ["sweep", "--scenario", "ahn_double_support", "--controller", "lqp", "--timing"]
+    args += ["--solver", "osqp", "--set", "duration=2.5", "--out", str(out)]
+    assert main(args) == 0
+    runs = pd.read_csv(out / "runs.csv")
+    assert (runs["status"] == "ok").all()
+    assert (runs["mode"] == "hot").all()
+    assert runs["settings"].str.contains('"recorder": "lqp"').all()

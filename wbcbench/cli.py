@@ -198,15 +198,30 @@ def _run_plan(plan, args: argparse.Namespace, out: Path) -> int:
         executor=args.executor,
         scheduler=args.scheduler,
         show_progress=not args.no_progress,
+        rerun="all" if args.force else "failed" if args.retry_failed else "none",
     )
     print(f"{report.computed} rows computed, {report.resumed} already in {out} (resumed)")
-    for line in report.failed:
+    for line in report.failed[:5]:
         print(f"  failed: {line}")
+    if len(report.failed) > 5:
+        print(f"  … and {len(report.failed) - 5} more (runs.csv has every message)")
+    if report.not_ok:
+        counts = ", ".join(f"{n} {status}" for status, n in sorted(report.not_ok.items()))
+        print(
+            f"not ok: {counts} of {len(plan.jobs)} planned rows "
+            "(--retry-failed recomputes them, --force recomputes every row)"
+        )
+        return 1
     return 0
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from wbcbench.bench.sweep import load_sweep_file, plan_from_names, plan_sweep
+    from wbcbench.bench.sweep import (
+        DEFAULT_RECORDERS,
+        load_sweep_file,
+        plan_from_names,
+        plan_sweep,
+    )
 
     if args.file:
         if args.scenario or args.controller or args.solver:
@@ -218,9 +233,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             args.controller or ["*"],
             args.solver or (["native"] if args.timing else ["default"]),
             [args.tier],
-            [args.mode],
+            [args.mode or ("hot" if args.timing else "cold")],
             args.set,
             kind="timing" if args.timing else "tracking",
+            record_with=args.record_with or DEFAULT_RECORDERS,
         )
     return _run_plan(plan, args, Path(args.out))
 
@@ -269,12 +285,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         _print_table(table)
     else:
         plan = plan_sweep(*load_sweep_file(args.sweep))
-        _run_plan(plan, args, out)
+        code = _run_plan(plan, args, out)
         if args.dry_run:
             return 0
     write_reports(out)
     print(f"results in {out}/ (summary.md, runs.csv, metrics.csv, tables/, figures/, ...)")
-    return 0
+    return code if not (args.scenario or args.controller or args.solver) else 0
 
 
 def _cmd_tables(args: argparse.Namespace) -> int:
@@ -334,20 +350,53 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     p = sub.add_parser("validate", help="validate scenario files against the schema and robot")
-    p.add_argument("scenarios", nargs="+", metavar="SCENARIO")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument(
+        "scenarios", nargs="+", metavar="SCENARIO", help="scenario files or names in scenarios/"
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field by its dotted path (validated like the file)",
+    )
     p.set_defaults(func=_cmd_validate)
 
-    def run_options(p: argparse.ArgumentParser, out_default: str) -> None:
-        p.add_argument("--controller", action="append", metavar="NAME")
-        p.add_argument("--solver", action="append", metavar="NAME")
+    def run_options(
+        p: argparse.ArgumentParser, out_default: str, mode_default: str | None = "cold"
+    ) -> None:
+        p.add_argument(
+            "--controller",
+            action="append",
+            metavar="NAME",
+            help="a controller (repeatable; `wbcbench list` names them)",
+        )
+        p.add_argument(
+            "--solver",
+            action="append",
+            metavar="NAME",
+            help="a QP backend (repeatable; `default`, `native`, `all` or names)",
+        )
         p.add_argument("--tier", default="default", help="accuracy tier: default, low, mid, high")
-        p.add_argument("--mode", default="cold", help="solver mode: cold, warm, hot")
-        p.add_argument("--out", default=out_default, metavar="DIR")
-        p.add_argument("--no-progress", action="store_true", help="no progress bar")
+        p.add_argument(
+            "--mode",
+            default=mode_default,
+            help="solver mode: cold, warm, hot "
+            + (
+                "(default: cold, hot with --timing)"
+                if mode_default is None
+                else "(default: %(default)s)"
+            ),
+        )
+        p.add_argument("--out", default=out_default, metavar="DIR", help="results folder")
+        p.add_argument(
+            "--no-progress",
+            action="store_true",
+            help="no progress bar (it is off anyway when stdout is not a terminal)",
+        )
 
     p = sub.add_parser("run", help="closed-loop runs of one scenario")
-    p.add_argument("scenario", metavar="SCENARIO")
+    p.add_argument("scenario", metavar="SCENARIO", help="a scenario file or a name in scenarios/")
     p.add_argument(
         "--set",
         action="append",
@@ -371,20 +420,55 @@ def build_parser() -> argparse.ArgumentParser:
             help="address of an existing dask scheduler (default: a local cluster)",
         )
         p.add_argument("--dry-run", action="store_true", help="validate and list the runs only")
+        rerun = p.add_mutually_exclusive_group()
+        rerun.add_argument(
+            "--retry-failed",
+            action="store_true",
+            help="recompute the planned rows stored as failed or error (others resume)",
+        )
+        rerun.add_argument(
+            "--force", action="store_true", help="recompute every planned row, stored or not"
+        )
 
     p = sub.add_parser("bench", help="the default sweep, then tables, solver report and figures")
-    p.add_argument("--scenario", action="append", metavar="NAME")
-    p.add_argument("--sweep", default="sweeps/default.yaml", metavar="FILE")
+    p.add_argument(
+        "--scenario",
+        action="append",
+        metavar="NAME",
+        help="closed-loop runs of these scenarios instead of the sweep file (repeatable)",
+    )
+    p.add_argument(
+        "--sweep", default="sweeps/default.yaml", metavar="FILE", help="the sweep file to run"
+    )
     run_options(p, "results")
     sweep_options(p)
     p.set_defaults(func=_cmd_bench)
 
     p = sub.add_parser("sweep", help="run a sweep file (or a matrix of names and globs)")
-    p.add_argument("file", nargs="?", metavar="FILE")
-    p.add_argument("--scenario", action="append", metavar="GLOB")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
-    p.add_argument("--timing", action="store_true", help="open-loop replay timing runs")
-    run_options(p, "results")
+    p.add_argument("file", nargs="?", metavar="FILE", help="a sweep file (sweeps/*.yaml)")
+    p.add_argument(
+        "--scenario", action="append", metavar="GLOB", help="scenario names or globs (repeatable)"
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field by its dotted path (repeatable)",
+    )
+    p.add_argument(
+        "--timing",
+        action="store_true",
+        help="open-loop replay timing runs (default mode hot, as in the sweep files)",
+    )
+    p.add_argument(
+        "--record-with",
+        action="append",
+        metavar="CONTROLLER",
+        help="with --timing: the controllers that record the replayed states, in order of "
+        "preference (default: qp_wbc, then lqp, then to_osf, as the default sweep)",
+    )
+    run_options(p, "results", mode_default=None)
     sweep_options(p)
     p.set_defaults(func=_cmd_sweep)
 
@@ -394,22 +478,24 @@ def build_parser() -> argparse.ArgumentParser:
         ("solvers", _cmd_solvers, "the QP solver comparison report"),
     ):
         p = sub.add_parser(name, help=text)
-        p.add_argument("results", metavar="RESULTS_DIR")
+        p.add_argument("results", metavar="RESULTS_DIR", help="a results folder of a sweep")
         if name == "tables":
             p.add_argument("--print", action="store_true", help="print the tables")
         p.set_defaults(func=func)
 
     p = sub.add_parser("replay", help="solve a dumped QP (.npz) again with one or more solvers")
-    p.add_argument("problem", metavar="PROBLEM.npz")
-    p.add_argument("--solver", action="append", metavar="NAME")
-    p.add_argument("--tier", default="default")
-    p.add_argument("--mode", default="cold")
+    p.add_argument("problem", metavar="PROBLEM.npz", help="a QP saved by a run or a sweep")
+    p.add_argument("--solver", action="append", metavar="NAME", help="a QP backend (repeatable)")
+    p.add_argument("--tier", default="default", help="accuracy tier: default, low, mid, high")
+    p.add_argument("--mode", default="cold", help="solver mode: cold, warm, hot")
     p.set_defaults(func=_cmd_replay)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if hasattr(args, "no_progress") and not (sys.stdout.isatty() and sys.stderr.isatty()):
+        args.no_progress = True  # a bar redrawn with \r only clutters a log file
     # One BLAS thread: the control loop's matrices are small, and a second BLAS thread on a
     # 2-core machine turns microsecond operations into millisecond spikes.
     threadpool_limits(1)

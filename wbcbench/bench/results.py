@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -124,3 +125,29 @@ class ResultsStore:
     def done_run_ids(self) -> set[str]:
         runs = self.runs()
         return set(runs["run_id"]) if not runs.empty else set()
+
+    def run_statuses(self) -> dict[str, str]:
+        """The status of every stored run, by run id."""
+        runs = self.runs()
+        return dict(zip(runs["run_id"], runs["status"], strict=True)) if not runs.empty else {}
+
+    def forget(self, run_ids: set[str]) -> int:
+        """Remove runs (row, metrics, log) so that a sweep computes them again.
+
+        Each table is rewritten to a temporary file and renamed over the old one, so a crash
+        leaves either the old or the new table. Returns the number of runs removed.
+        """
+        runs = self.runs()
+        if runs.empty or not run_ids:
+            return 0
+        gone = runs["run_id"].isin(run_ids)
+        for csv_path, table in ((self.runs_csv, runs), (self.metrics_csv, self.metrics())):
+            if table.empty:
+                continue
+            tmp = csv_path.with_suffix(".csv.tmp")
+            table[~table["run_id"].isin(run_ids)].to_csv(tmp, index=False)
+            os.replace(tmp, csv_path)
+        for rid in run_ids:
+            (self.folder / "logs" / f"{rid}.parquet").unlink(missing_ok=True)
+        self._mirror()
+        return int(gone.sum())

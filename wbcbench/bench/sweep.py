@@ -120,6 +120,10 @@ class TrackingSpec(MatrixSpec):
     )
 
 
+#: who records the replayed states when nothing says otherwise: the default sweep's chain
+DEFAULT_RECORDERS: tuple[str, ...] = ("qp_wbc", "lqp", "to_osf")
+
+
 class TimingSpec(MatrixSpec):
     """Open-loop replay timing on the states of one recorded closed-loop run per scenario."""
 
@@ -131,7 +135,7 @@ class TimingSpec(MatrixSpec):
         None, ge=0, description="replay from this time [s]; default: the metrics window start"
     )
     record_with: list[str] = Field(
-        default_factory=lambda: ["qp_wbc"],
+        default_factory=lambda: list(DEFAULT_RECORDERS),
         description="controllers to record the states with, in order: the first that applies "
         "and whose closed-loop run covers the window (does not fall or fail before its end)",
     )
@@ -583,21 +587,24 @@ def plan_from_names(
     modes: Sequence[str] = ("cold",),
     overrides: Sequence[str] = (),
     kind: Literal["tracking", "timing"] = "tracking",
+    record_with: Sequence[str] = DEFAULT_RECORDERS,
 ) -> SweepPlan:
-    """A one-matrix plan from command-line names and globs (validated like a file)."""
-    raw: dict[str, Any] = {
-        "version": 1,
-        kind: [
-            {
-                "scenarios": list(scenarios),
-                "controllers": list(controllers),
-                "solvers": list(solvers),
-                "tiers": list(tiers),
-                "modes": list(modes),
-                "set": list(overrides),
-            }
-        ],
+    """A one-matrix plan from command-line names and globs (validated like a file).
+
+    ``record_with``: for timing plans, the controllers that record the replayed states, in
+    order (the first that applies and covers the window).
+    """
+    matrix: dict[str, Any] = {
+        "scenarios": list(scenarios),
+        "controllers": list(controllers),
+        "solvers": list(solvers),
+        "tiers": list(tiers),
+        "modes": list(modes),
+        "set": list(overrides),
     }
+    if kind == "timing":
+        matrix["record_with"] = list(record_with)
+    raw: dict[str, Any] = {"version": 1, kind: [matrix]}
     from wbcbench.scenarios.load import validation_error
 
     try:
@@ -609,14 +616,22 @@ def plan_from_names(
 
 # -- running
 
+#: row statuses that make a sweep exit non-zero (a fall is a measurement, not a failure)
+NOT_OK = ("failed", "error")
+
 
 @dataclass
 class SweepReport:
-    """What a sweep did: rows computed, skipped as already done, and failures."""
+    """What a sweep did: rows computed, skipped as already done, and failures.
+
+    ``failed`` lists the rows computed now whose status is ``failed`` or ``error``;
+    ``not_ok`` the statuses of every planned row (computed or resumed) that is one of those.
+    """
 
     computed: int = 0
     resumed: int = 0
     failed: list[str] = field(default_factory=list)
+    not_ok: dict[str, int] = field(default_factory=dict)
 
 
 def run_sweep(
@@ -627,13 +642,16 @@ def run_sweep(
     show_progress: bool = True,
     max_jobs: int | None = None,
     on_row: Callable[[Job, dict[str, Any]], None] | None = None,
+    rerun: Literal["none", "failed", "all"] = "none",
 ) -> SweepReport:
     """Run every job of the plan, appending each row to the store in ``out`` as it finishes.
 
     Tracking jobs go to ``executor`` (``serial`` or ``dask``); timing jobs, the QP dumps, the
     solver comparison and the hierarchy scaling always run serially in this process with one
-    BLAS thread. A rerun skips the rows already in ``out``. ``max_jobs`` stops after that many
-    computed rows (to test interruption).
+    BLAS thread. A rerun skips the rows already in ``out``, except those ``rerun`` names:
+    ``failed`` recomputes the planned rows stored as ``failed`` or ``error``, ``all`` every
+    planned row (their old rows, metrics and logs are removed first). ``max_jobs`` stops
+    after that many computed rows (to test interruption).
     """
     from threadpoolctl import threadpool_limits
     from tqdm import tqdm
@@ -645,6 +663,16 @@ def run_sweep(
 
     store = ResultsStore(out)
     version = code_version(store)
+    planned_ids = {run_id(job.loaded, job.settings, version, extra=job.extra) for job in plan.jobs}
+    if rerun != "none":
+        statuses = store.run_statuses()
+        store.forget(
+            {
+                rid
+                for rid in planned_ids
+                if rid in statuses and (rerun == "all" or statuses[rid] in NOT_OK)
+            }
+        )
     done = store.done_run_ids()
     report = SweepReport()
     pending: list[tuple[Job, str]] = []
@@ -670,7 +698,7 @@ def run_sweep(
         report.computed += 1
         budget[0] -= 1
         row = record.row
-        if row["status"] not in ("ok", "skipped"):
+        if row["status"] in NOT_OK:
             report.failed.append(f"{job.label}: {row['status']}: {row.get('message', '')}")
         if on_row is not None:
             on_row(job, row)
@@ -699,6 +727,11 @@ def run_sweep(
             bar.set_postfix_str(job.label[:60])
             finished(job, guarded_timing_job(job, rid, version, store.folder))
             bar.update()
+    final = store.run_statuses()
+    for rid in planned_ids:
+        status = final.get(rid)
+        if status in NOT_OK:
+            report.not_ok[status] = report.not_ok.get(status, 0) + 1
     if budget[0] <= 0 and max_jobs is not None:
         return report
     if plan.comparison is not None:
