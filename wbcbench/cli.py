@@ -182,7 +182,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0 if (table["status"] == "ok").all() else 1
 
 
-def _run_plan(plan, args: argparse.Namespace, out: Path) -> int:
+def _run_plan(plan, args: argparse.Namespace, out: Path, bench: bool = False) -> int:
+    """Run a plan and print what it did; the exit status: 1 when a planned row is ``failed``
+    or ``error`` (for ``bench``, only ``error``), else 0."""
     from wbcbench.bench.sweep import run_sweep
 
     print(f"{len(plan.jobs)} runs planned ({plan.file})")
@@ -211,8 +213,9 @@ def _run_plan(plan, args: argparse.Namespace, out: Path) -> int:
             f"not ok: {counts} of {len(plan.jobs)} planned rows "
             "(--retry-failed recomputes them, --force recomputes every row)"
         )
-        return 1
-    return 0
+    if bench:  # solver failures are findings of a benchmark; an exception is a defect
+        return 1 if report.not_ok.get("error") else 0
+    return 1 if report.not_ok else 0
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
@@ -285,7 +288,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         _print_table(table)
     else:
         plan = plan_sweep(*load_sweep_file(args.sweep))
-        code = _run_plan(plan, args, out)
+        code = _run_plan(plan, args, out, bench=True)
         if args.dry_run:
             return 0
     write_reports(out)
