@@ -743,6 +743,11 @@ class RcLqp(Controller):
                     )
                 extra["fallback"] = 1.0
                 qdd, f, tau, why = fb.x[:n].copy(), fb.x[n:].copy(), G @ fb.x + gamma, ""
+                # the residuals of the solution applied (the full model has no eq. 30)
+                Jc = state.contact_jacobian(self.frames)
+                base = state.M[:6] @ qdd + state.h[:6] - Jc[:, :6].T @ f
+                diag["base_residual"] = float(np.abs(base).max())
+                diag["coupling_residual"] = float("nan")
         if why:
             msg = f"{why}: eq. (30) cannot be met within the chains' torque and q̈ limits"
             return failed_output(n, k, nc, terms, timer.finish(), msg, self.last_output)
