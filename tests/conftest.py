@@ -35,3 +35,44 @@ def random_standing_state(
     q[7:] = np.clip(q[7:], robot.q_min, robot.q_max)
     v = rng.uniform(-v_noise, v_noise, robot.nv)
     return q, v
+
+
+def grounded_state(
+    robot: Robot,
+    keyframe: str,
+    frames: list[str],
+    rng: np.random.Generator,
+    q_noise: float = 0.1,
+    v_noise: float = 0.3,
+) -> tuple[np.ndarray, np.ndarray]:
+    """A perturbed state that the rigid contacts admit: the keyframe's joints offset by
+    ±``q_noise`` rad, then the contact frames put back on their keyframe placements (Gauss–Newton
+    on the base and the joints, minimal-norm steps); velocities uniform in ±``v_noise`` projected
+    onto J_c v = 0, so the soles neither penetrate, slide nor lift."""
+    import pinocchio as pin
+
+    from wbcbench.dynamics.state import RobotState
+
+    model = robot.pin_model
+    q0, _ = robot.keyframe(keyframe)
+    goal = [RobotState(robot, q0, np.zeros(robot.nv)).placement(f) for f in frames]
+    q = q0.copy()
+    q[7:] = np.clip(q[7:] + rng.uniform(-q_noise, q_noise, robot.k), robot.q_min, robot.q_max)
+    for _ in range(50):
+        state = RobotState(robot, q, np.zeros(robot.nv))
+        err = np.concatenate(
+            [
+                pin.log6(g.actInv(state.placement(f))).vector
+                for f, g in zip(frames, goal, strict=True)
+            ]
+        )
+        if np.abs(err).max() < 1e-12:
+            break
+        dq = -np.linalg.lstsq(state.contact_jacobian(frames), err, rcond=None)[0]
+        q = pin.integrate(model, q, dq)
+    else:
+        raise RuntimeError("the soles could not be put back on the ground")
+    Jc = RobotState(robot, q, np.zeros(robot.nv)).contact_jacobian(frames)
+    v = rng.uniform(-v_noise, v_noise, robot.nv)
+    v -= np.linalg.lstsq(Jc, Jc @ v, rcond=None)[0]
+    return q, v

@@ -243,3 +243,55 @@ def test_closed_loop_exact_assembly_tracks_at_least_as_well_as_the_papers() -> N
     assert exact["fell"] == 0.0 and exact["failures"] == 0.0, exact
     for key in ("err.com.pos", "err.l_hand.pos"):
         assert exact[key] <= paper[key], (key, exact, paper)
+
+
+# -- eq. (30) out of the chains' reach ---------------------------------------------------------
+
+
+def test_rc_lqp_replans_when_eq30_is_out_of_reach(tocabi: Robot) -> None:
+    """The bare standing keyframe (v = 0) of tocabi_stand_sway during the sway: LQP 1 asks the
+    chains for a centroidal acceleration that eq. (30) cannot meet within their torque and q̈
+    limits. The step re-plans and still realises exactly what it predicts, within the limits;
+    with ``infeasible_coupling = "fail"`` it fails instead of returning an unrealisable plan."""
+    replan = make(RcLqp, RcLqpConfig(), "tocabi_stand_sway", tocabi)
+    fail = make(RcLqp, RcLqpConfig(infeasible_coupling="fail"), "tocabi_stand_sway", tocabi)
+    assert isinstance(replan, RcLqp)
+    q, _ = tocabi.keyframe("stand")
+    v = np.zeros(tocabi.nv)
+    for t in (2.5, 2.75, 3.0):
+        replan.start(RobotState(tocabi, q, v))
+        out = replan.step(RobotState(tocabi, q, v), t)
+        assert out.ok, out.message
+        assert out.diagnostics["replan"] == 1.0
+        assert out.diagnostics["coupling_residual"] <= 1e-8
+        state = RobotState(tocabi, q, v)
+        oracle = forward_dynamics(state, out.tau, replan.frames)
+        assert np.abs(oracle.qdd - out.qdd).max() <= 1e-6
+        assert np.linalg.norm(oracle.wrench - out.wrench) <= 1e-6 * np.linalg.norm(out.wrench)
+        assert (np.abs(out.tau) <= replan.ctx.tau_max * (1 + 1e-7) + 1e-6).all()
+        fail.start(RobotState(tocabi, q, v))
+        bad = fail.step(RobotState(tocabi, q, v), t)
+        assert not bad.ok and "eq. (30)" in bad.message, bad.message
+
+
+def test_rc_lqp_falls_back_to_the_full_model_when_the_replan_misses(tocabi: Robot) -> None:
+    """A state where the re-planned LQP 2 still cannot meet eq. (30) (the chains' torque limits
+    move with the base acceleration): the tick is solved by the full-model LQP, exactly."""
+    from tests.conftest import grounded_state
+
+    ctrl = make(RcLqp, RcLqpConfig(), "tocabi_stand_sway", tocabi)
+    full = make(Lqp, LqpConfig(), "tocabi_stand_sway", tocabi)
+    rng = np.random.default_rng(2026)
+    fallbacks = 0
+    for _ in range(30):
+        q, v = grounded_state(tocabi, "stand", ctrl.frames, rng)  # type: ignore[attr-defined]
+        t = float(rng.uniform(1.0, 9.0))
+        ctrl.start(RobotState(tocabi, q, v))
+        out = ctrl.step(RobotState(tocabi, q, v), t)
+        assert out.ok, out.message
+        if out.diagnostics["fallback"]:
+            fallbacks += 1
+            full.start(RobotState(tocabi, q, v))
+            ref = full.step(RobotState(tocabi, q, v), t)
+            assert np.abs(out.tau - ref.tau).max() <= 1e-8 * max(1.0, float(np.abs(ref.tau).max()))
+    assert fallbacks >= 1

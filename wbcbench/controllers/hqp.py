@@ -16,7 +16,10 @@ above held. Final regularisation levels resolve the remaining redundancy:
 
 A task with ``level: force`` is a torque-level request (OSF-HQP T4: joint damping Γ = −k q̇); it
 is supported for joint tasks, whose torque rows are S_j Γ = −k_v q̇_j + S_j h: the damping acts on
-top of the joints' bias compensation, as the OSF's force-level tasks act on top of Γ_gc.
+top of the joints' bias compensation, as the OSF's force-level tasks act on top of Γ_gc. It is
+not the OSF's force-level task: ``osf_hqp`` applies F* through the projected OSF Jacobian,
+J*_{l|<l}ᵀ F* (OSF-HQP eq. 30–31), so ``zero_torque_energy`` makes the two controllers agree
+for acceleration-level tasks only (see the README's known limitations).
 
 Strategies (see :mod:`wbcbench.qp.hierarchy`): ``cascade`` (the papers' conventional method),
 ``nullspace``, ``weighted`` and ``rqr``.

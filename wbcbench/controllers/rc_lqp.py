@@ -58,9 +58,43 @@ With ``coupling_priority`` (the paper's optional extra priority, §4.2), LQP 2 f
 *below* its task levels; when that leaves a violation, the centroidal acceleration LQP 2 reached
 becomes an extra priority of LQP 1 (after its task levels), and both are solved again.
 
+**When eq. (30) cannot be met** (``infeasible_coupling``). LQP 1 plans the chains' centroidal
+acceleration q̈_r,G without seeing their torque and joint-acceleration limits; when LQP 2 cannot
+realise it within them, its coupling level only minimises the violation, the combined (q̈, f)
+then breaks the floating-base rows of the full dynamics, and no torque realises it: the exact
+assembly's Γ makes the robot do something else, and the torque may pass its limits. Measured
+before this was handled, on perturbed states (joints ±0.1 rad with the soles on the ground,
+velocities ±0.3 rad/s with J_c v = 0, t in the metrics window) and against the rigid-contact
+oracle (30 states per scenario): predicted and realised q̈ apart by up to 150 rad/s² on
+``tocabi_stand_sway`` and 130 on ``ahn_single_support``, wrench off by up to 360 %, torque
+limits passed by up to 22 N·m, every such step reported ok; it happens even at the bare
+standing keyframe with v = 0 during the sway. The paper leaves this case open
+(eq. 30 is LQP 2's highest priority; §4.2's optional extra priority only feeds the violation
+back as a soft level). Here every step is checked after the assembly — eq. (30) met, the
+floating-base rows met (exact assembly), every torque within its limit, to ``coupling_tol`` — and
+one that fails the check is never returned as ok:
+
+* ``replan`` (default): feed the infeasibility back to LQP 1. An LQP 2 of the chains' limits and
+  eq. (30) alone gives the centroidal acceleration ā_G the chains *can* reach nearest to the one
+  asked for; LQP 1 is solved again with q̈_r,G = ā_G as a hard constraint next to the
+  Newton–Euler rows (the preview level dropped: the chains' centroid is no longer free), so its
+  priorities (contacts, CoM, pelvis, …) are met as well as the chains' reachable motion allows;
+  LQP 2 then meets eq. (30) for ā_G. The chains' torque limits depend on the base acceleration
+  LQP 1 has just changed, so this can still miss; then the tick is solved by the full-model LQP
+  of :mod:`wbcbench.controllers.lqp` with the same priorities and settings, which holds every
+  limit jointly and always realises its plan. Diagnostics ``replan`` and ``fallback`` (0/1) say
+  which happened; on 30 perturbed states of ``tocabi_stand_sway`` 11 re-planned and 4 of them
+  fell back (``ahn_double_support``: 12 and 0; ``ahn_single_support``: 3 and 1).
+* ``fail``: the tick fails (ok = False) with the reason, e.g. "eq. (30) not met (residual …)".
+
+The robot stays controlled by the first and only the re-planned or full-model solution is ever
+applied, so every ok step realises what it predicts (oracle: ≤ 1e-10 with quadprog). This holds
+for the exact assembly; the ``paper`` assembly departs from its plan by construction (below).
+
 Timings (Table 3): ``reduced`` (the reduced-dynamics calculation), ``lqp1``, ``lqp2`` (each
 formulation + solve), ``solve.lqp1`` / ``solve.lqp2`` (solver only) and per level
-``solve.lqp1.<level>``. Diagnostics: ``coupling_residual`` (eq. 30), ``base_residual``
+``solve.lqp1.<level>``, ``fallback`` and ``solve.fallback`` (the full-model LQP's, 0 on other
+ticks). Diagnostics: ``replan``, ``fallback``, ``coupling_residual`` (eq. 30), ``base_residual``
 (floating-base rows of the full dynamics at the combined solution), ``assembly_diff``
 (max |Γ_exact − Γ_paper| [N·m]) and each level's optimal slacks.
 """
@@ -83,6 +117,8 @@ from wbcbench.controllers.base import (
 )
 from wbcbench.controllers.lqp import (
     LexicographicConfig,
+    Lqp,
+    LqpConfig,
     SolverPool,
     energy_objective,
     failed_output,
@@ -134,7 +170,18 @@ class RcLqpConfig(LexicographicConfig):
         description="also report assembly_diff under the exact assembly (one more RNEA per tick)",
     )
     coupling_tol: float = Field(
-        1e-6, gt=0, description="coupling_priority: eq. (30) violation that triggers re-solving"
+        1e-6,
+        gt=0,
+        description="eq. (30) violation that counts as not met (triggers coupling_priority's "
+        "re-solve and the infeasible_coupling handling); also the tolerance of the step's check "
+        "of the floating-base rows (relative to max(1, ‖h_base‖∞)) and of the torque limits",
+    )
+    infeasible_coupling: Literal["replan", "fail"] = Field(
+        "replan",
+        description="when eq. (30) cannot be met within the chains' torque and acceleration "
+        "limits: re-plan LQP 1 with the centroidal acceleration the chains can reach, then, if "
+        "that is still not met, solve the tick with the full-model LQP (same priorities); or "
+        "fail the tick",
     )
 
 
@@ -218,6 +265,13 @@ class RcLqp(Controller):
         self.pool2 = SolverPool(ctx)
         self.pool1b = SolverPool(ctx)
         self.pool2b = SolverPool(ctx)
+        self.pool1c = SolverPool(ctx)
+        self.pool2c = SolverPool(ctx)
+        self.pool2r = SolverPool(ctx)
+        # the full-model LQP with the same priorities and settings: the last resort of a tick
+        # whose eq. (30) cannot be met (infeasible_coupling = "replan")
+        shared = set(LexicographicConfig.model_fields)
+        self.full = Lqp(ctx, LqpConfig(**self.config.model_dump(include=shared)))
         self._rows: _RowSplit | None = None
         self.last: tuple[HierarchyResult, HierarchyResult | None] | None = None
         self.last_reduced: ReducedModel | None = None
@@ -467,73 +521,127 @@ class RcLqp(Controller):
 
     # -- the step -------------------------------------------------------------------------------
 
-    def step(self, state: RobotState, t: float) -> ControlOutput:
-        timer = StageTimer(state)
+    def _plan(
+        self,
+        state: RobotState,
+        red: ReducedModel,
+        terms: list[TaskTerm],
+        level: Preview | None,
+        target: Preview | None,
+        timer: StageTimer,
+        times: dict[str, float],
+        extra: dict[str, float],
+    ) -> tuple[HierarchyResult, HierarchyResult | None, str]:
+        """LQP 1 then LQP 2 (with ``coupling_priority``'s re-solve); an error message if either
+        failed. ``times`` accumulates the time of each LQP."""
+        cfg = self.config
+        n_p, n_r = self.split.plain.size, self.split.n_reduced
+        t1 = time.perf_counter()
+        hard1, levels1, _, _ = self.lqp1_levels(state, red, terms, level)
+        res1 = self.solve_lqp1(red, hard1, levels1, target, self.pool1, timer)
+        times["lqp1"] += time.perf_counter() - t1
+        if not res1.ok:
+            return res1, None, "LQP 1: " + res1.message
+        if not self.split.unconstrained.size:
+            return res1, None, ""
+        x1 = res1.x
+        t2 = time.perf_counter()
+        levels2, _, _ = self.lqp2_levels(state, red, terms, x1, cfg.coupling_priority)
+        res2 = self.solve_lqp2(state, red, levels2, x1, self.pool2, timer)
+        times["lqp2"] += time.perf_counter() - t2
+        if res2.ok and cfg.coupling_priority:
+            w = res2.levels[len(levels2) - 1].w  # eq. (30)'s violation (the last level)
+            extra["coupling_violation"] = float(np.linalg.norm(w))
+            if np.linalg.norm(w) > cfg.coupling_tol:
+                # LQP 1 again, the centroidal acceleration LQP 2 reached as an extra priority
+                t1 = time.perf_counter()
+                reached = x1[n_p:n_r] + w
+                sel = np.zeros((n_r - n_p, n_r + self.nc))
+                sel[:, n_p:n_r] = np.eye(n_r - n_p)
+                hard1, levels1b, _, _ = self.lqp1_levels(state, red, terms, level)
+                levels1b.append(PriorityLevel("coupling", A=sel, b=reached))
+                res1 = self.solve_lqp1(red, hard1, levels1b, target, self.pool1b, timer)
+                times["lqp1"] += time.perf_counter() - t1
+                if not res1.ok:
+                    return res1, None, "LQP 1 (coupling): " + res1.message
+                x1 = res1.x
+                t2 = time.perf_counter()
+                levels2, _, _ = self.lqp2_levels(state, red, terms, x1, False)
+                res2 = self.solve_lqp2(state, red, levels2, x1, self.pool2b, timer)
+                times["lqp2"] += time.perf_counter() - t2
+        if not res2.ok:
+            return res1, res2, "LQP 2: " + res2.message
+        return res1, res2, ""
+
+    def _replan(
+        self,
+        state: RobotState,
+        red: ReducedModel,
+        terms: list[TaskTerm],
+        x1: np.ndarray,
+        timer: StageTimer,
+        times: dict[str, float],
+    ) -> tuple[HierarchyResult, HierarchyResult | None, str]:
+        """Feed eq. (30)'s infeasibility back to LQP 1. The centroidal acceleration the chains
+        can reach within their limits, ā_G = argmin ‖J_G q̈_uc + J̇_G q̇ − q̈_r,G‖ over the q̈_uc
+        that respect them (an LQP 2 of the limits and eq. 30 alone), becomes a hard constraint
+        q̈_r,G = ā_G of LQP 1 next to the Newton–Euler rows: LQP 1 re-plans the base, the
+        constraint chain and the wrench for the chains' motion that can happen, each of its
+        priorities met as well as that allows. LQP 2 then solves eq. (30) for ā_G again; the
+        chains' torque limits move with the new base acceleration, so the caller checks the
+        result."""
+        n_p, n_r = self.split.plain.size, self.split.n_reduced
+        t2 = time.perf_counter()
+        levels, _, _ = self.lqp2_levels(state, red, [], x1, coupling_last=True)
+        reach = self.solve_lqp2(state, red, levels, x1, self.pool2r, timer)
+        times["lqp2"] += time.perf_counter() - t2
+        if not reach.ok:
+            return reach, None, "LQP 2 (reachable centroidal acceleration): " + reach.message
+        w = next(lv.w for lv in reach.levels if lv.name == "lqp2.coupling")
+        reached = x1[n_p:n_r] + w
+        t1 = time.perf_counter()
+        hard1, levels1, _, _ = self.lqp1_levels(state, red, terms, None)
+        sel = np.zeros((n_r - n_p, n_r + self.nc))
+        sel[:, n_p:n_r] = np.eye(n_r - n_p)
+        assert hard1.A is not None and hard1.b is not None
+        hard1 = Constraints(
+            hard1.n,
+            A=np.vstack([hard1.A, sel]),
+            b=np.concatenate([hard1.b, reached]),
+            C=hard1.C,
+            l=hard1.l,
+            u=hard1.u,
+        )
+        res1 = self.solve_lqp1(red, hard1, levels1, None, self.pool1c, timer)
+        times["lqp1"] += time.perf_counter() - t1
+        if not res1.ok:
+            return res1, None, "LQP 1 (re-planned): " + res1.message
+        t2 = time.perf_counter()
+        levels2, _, _ = self.lqp2_levels(state, red, terms, res1.x, False)
+        res2 = self.solve_lqp2(state, red, levels2, res1.x, self.pool2c, timer)
+        times["lqp2"] += time.perf_counter() - t2
+        if not res2.ok:
+            return res1, res2, "LQP 2 (re-planned): " + res2.message
+        return res1, res2, ""
+
+    def _assemble(
+        self,
+        state: RobotState,
+        red: ReducedModel,
+        res1: HierarchyResult,
+        res2: HierarchyResult | None,
+        diag: dict[str, float],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, str]:
+        """(q̈, f, Γ) of the combined solution, the diagnostics, and why the step must not be
+        trusted ("" if it may): eq. (30) not met, the floating-base rows of the full dynamics
+        not met (exact assembly: the robot would not realise the plan), a torque limit
+        exceeded."""
         cfg = self.config
         split = self.split
-        n, k, nc = state.n, state.k, self.nc
         n_r, plain, uc = split.n_reduced, split.plain, split.unconstrained
         n_p = plain.size
-        terms = self.evaluate_tasks(state, t)
-        red = self.reduced.compute(state, fixed_base=cfg.assembly == "paper" or cfg.diagnostics)
-        self.last_reduced = red
-        if self._rows is None:
-            self._rows = self._classify(red, terms)
-
-        t1 = time.perf_counter()
-        # the chains' centroidal accelerations: a level of LQP 1 (priority) or its energy's target
-        preview = level = target = None
-        if cfg.centroid_preview != "off" and uc.size:
-            preview = self.preview(state, red, terms)
-        if cfg.centroid_preview == "priority":
-            level = preview
-        else:
-            target = preview
-        hard1, levels1, G1, gamma1 = self.lqp1_levels(state, red, terms, level)
-        res1 = self.solve_lqp1(red, hard1, levels1, target, self.pool1, timer)
-        t_lqp1 = time.perf_counter() - t1
-        if not res1.ok:
-            return failed_output(
-                n, k, nc, terms, timer.finish(), "LQP 1: " + res1.message, self.last_output
-            )
         x1 = res1.x
-
-        res2: HierarchyResult | None = None
-        t_lqp2 = 0.0
-        extra: dict[str, float] = {}
-        if uc.size:
-            t2 = time.perf_counter()
-            levels2, _, _ = self.lqp2_levels(state, red, terms, x1, cfg.coupling_priority)
-            res2 = self.solve_lqp2(state, red, levels2, x1, self.pool2, timer)
-            t_lqp2 += time.perf_counter() - t2
-            if res2.ok and cfg.coupling_priority:
-                w = res2.levels[len(levels2) - 1].w  # eq. (30)'s violation (the last level)
-                extra["coupling_violation"] = float(np.linalg.norm(w))
-                if np.linalg.norm(w) > cfg.coupling_tol:
-                    # LQP 1 again, the centroidal acceleration LQP 2 reached as an extra priority
-                    t1 = time.perf_counter()
-                    reached = x1[n_p:n_r] + w
-                    sel = np.zeros((n_r - n_p, n_r + nc))
-                    sel[:, n_p:n_r] = np.eye(n_r - n_p)
-                    hard1, levels1b, G1, gamma1 = self.lqp1_levels(state, red, terms, level)
-                    levels1b.append(PriorityLevel("coupling", A=sel, b=reached))
-                    res1 = self.solve_lqp1(red, hard1, levels1b, target, self.pool1b, timer)
-                    t_lqp1 += time.perf_counter() - t1
-                    if not res1.ok:
-                        msg = "LQP 1 (coupling): " + res1.message
-                        return failed_output(n, k, nc, terms, timer.finish(), msg, self.last_output)
-                    x1 = res1.x
-                    t2 = time.perf_counter()
-                    levels2, _, _ = self.lqp2_levels(state, red, terms, x1, False)
-                    res2 = self.solve_lqp2(state, red, levels2, x1, self.pool2b, timer)
-                    t_lqp2 += time.perf_counter() - t2
-            if not res2.ok:
-                return failed_output(
-                    n, k, nc, terms, timer.finish(), "LQP 2: " + res2.message, self.last_output
-                )
-
-        # combined solution
-        qdd = np.zeros(n)
+        qdd = np.zeros(state.n)
         qdd[plain] = x1[:n_p]
         f = x1[n_r:]
         if res2 is not None:
@@ -542,38 +650,122 @@ class RcLqp(Controller):
         # the full inverse dynamics at (q̈, f): actuated rows for Γ, base rows as a check
         full = state.M @ qdd + state.h - Jc.T @ f
         tau = full[6:]
-        diag: dict[str, float] = {}
         if cfg.assembly == "paper" or cfg.diagnostics:
-            tau_paper = np.empty(k)
-            tau_paper[self._act_plain] = G1 @ x1 + gamma1
+            red_nl = red.b_r + red.g_r
+            G1 = np.hstack([red.M_r[6:n_p], -red.J_cr[:, 6:n_p].T])
+            tau_paper = np.empty(state.k)
+            tau_paper[self._act_plain] = G1 @ x1 + red_nl[6:n_p]
             if uc.size:
                 tau_paper[self._act_uc] = red.M_uc @ qdd[uc] + red.b_uc + red.g_uc
             diag["assembly_diff"] = float(np.abs(tau - tau_paper).max())
             if cfg.assembly == "paper":
                 tau = tau_paper
+        tol = cfg.coupling_tol
         diag["base_residual"] = float(np.abs(full[:6]).max())
+        why = ""
         if uc.size:
             realized = red.J_G @ qdd[uc] + red.dJG_v
             diag["coupling_residual"] = float(np.abs(realized - x1[n_p:n_r]).max())
+            if diag["coupling_residual"] > tol:
+                why = f"eq. (30) not met (residual {diag['coupling_residual']:.3g})"
+        if not why and cfg.assembly == "exact":
+            scale = max(1.0, float(np.abs(state.h[:6]).max()))
+            if diag["base_residual"] > tol * scale:
+                why = f"floating-base rows not met ({diag['base_residual']:.3g} N)"
+        excess = float((np.abs(tau) - self.ctx.tau_max * (1 + tol)).max(initial=-np.inf))
+        if not why and excess > tol:
+            why = f"torque limit exceeded by {excess:.3g} N·m"
+        return qdd, f, tau, why
+
+    def step(self, state: RobotState, t: float) -> ControlOutput:
+        timer = StageTimer(state)
+        cfg = self.config
+        n, k, nc = state.n, state.k, self.nc
+        uc = self.split.unconstrained
+        terms = self.evaluate_tasks(state, t)
+        red = self.reduced.compute(state, fixed_base=cfg.assembly == "paper" or cfg.diagnostics)
+        self.last_reduced = red
+        if self._rows is None:
+            self._rows = self._classify(red, terms)
+
+        # the chains' centroidal accelerations: a level of LQP 1 (priority) or its energy's target
+        preview = level = target = None
+        if cfg.centroid_preview != "off" and uc.size:
+            preview = self.preview(state, red, terms)
+        if cfg.centroid_preview == "priority":
+            level = preview
+        else:
+            target = preview
+        times = {"lqp1": 0.0, "lqp2": 0.0, "fallback": 0.0}
+        extra: dict[str, float] = {"replan": 0.0, "fallback": 0.0}
+        res1, res2, msg = self._plan(state, red, terms, level, target, timer, times, extra)
+        if msg:
+            return failed_output(n, k, nc, terms, timer.finish(), msg, self.last_output)
+        diag: dict[str, float] = {}
+        qdd, f, tau, why = self._assemble(state, red, res1, res2, diag)
         diag.update(slack_diagnostics(res1))
         if res2 is not None:
             diag.update(slack_diagnostics(res2))
-        diag.update(extra)
         diag["prox_retries"] = float(res1.retries + (res2.retries if res2 is not None else 0))
+        if why and cfg.infeasible_coupling == "replan":
+            # eq. (30) within the chains' limits is infeasible for what LQP 1 asked: re-plan
+            extra["replan"] = 1.0
+            r1, r2, msg = self._replan(state, red, terms, res1.x, timer, times)
+            if not msg:
+                retry: dict[str, float] = {}
+                qdd2, f2, tau2, why2 = self._assemble(state, red, r1, r2, retry)
+                if not why2:
+                    res1, res2, qdd, f, tau, why = r1, r2, qdd2, f2, tau2, ""
+                    diag.update(retry)
+            if why:
+                # still not met: the whole tick by the full-model LQP (same priorities)
+                t0 = time.perf_counter()
+                hard, levels, final, G, gamma = self.full.hierarchy(state, terms)
+                for lv in levels:
+                    lv.name = f"fallback.{lv.name}"
+                handles = self.full.pool.get(2 * (len(levels) + 1))
+                fb = solve_hierarchy(
+                    hard,
+                    levels,
+                    [final],
+                    cfg.strategy,
+                    handles,
+                    timer,
+                    prox=cfg.prox,
+                    merge_finals=True,
+                    slack_free_first=True,
+                )
+                times["fallback"] = time.perf_counter() - t0
+                if not fb.ok:
+                    msg = f"{why}; re-planning did not meet it and the full-model LQP failed: "
+                    return failed_output(
+                        n, k, nc, terms, timer.finish(), msg + fb.message, self.last_output
+                    )
+                extra["fallback"] = 1.0
+                qdd, f, tau, why = fb.x[:n].copy(), fb.x[n:].copy(), G @ fb.x + gamma, ""
+                # the residuals of the solution applied (the full model has no eq. 30)
+                Jc = state.contact_jacobian(self.frames)
+                base = state.M[:6] @ qdd + state.h[:6] - Jc[:, :6].T @ f
+                diag["base_residual"] = float(np.abs(base).max())
+                diag["coupling_residual"] = float("nan")
+        if why:
+            msg = f"{why}: eq. (30) cannot be met within the chains' torque and q̈ limits"
+            return failed_output(n, k, nc, terms, timer.finish(), msg, self.last_output)
+        diag.update(extra)
         if cfg.coupling_priority:
             # keys of the re-solve exist on every tick, so per-tick logs stay rectangular
             for key in ("w.lqp1.coupling", "v.lqp1.coupling", "w.lqp2.limits", "v.lqp2.limits"):
                 diag.setdefault(key, float("nan"))
             diag.setdefault("coupling_violation", float("nan"))
-        self.last = (res1, res2)
+        # the two LQPs' results when they produced this step (None when the full model did)
+        self.last = None if extra["fallback"] else (res1, res2)
 
         timings = timer.finish()
         timings["reduced"] = red.time
-        timings["lqp1"] = t_lqp1
-        timings["lqp2"] = t_lqp2
+        timings.update(times)
         if cfg.coupling_priority:
             timings.setdefault("solve.lqp1.coupling", 0.0)
-        for part in ("lqp1", "lqp2"):
+        for part in ("lqp1", "lqp2", "fallback"):
             keys = [key for key in timings if key.startswith(f"solve.{part}.")]
             timings[f"solve.{part}"] = sum(timings[key] for key in keys)
         self.last_output = ControlOutput(
