@@ -151,3 +151,22 @@ def test_cli_subprocess_has_no_traceback(tmp_path: Path) -> None:
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.startswith(f"error: {path}: tasks[3].frame: unknown frame 'l_hnd'")
+
+
+def test_a_contact_without_cop_on_a_frame_with_no_sole_size(tmp_path: Path) -> None:
+    path = variant(
+        tmp_path, "  - {frame: r_sole, mu: 0.5, fmin: 30}\n",
+        "  - {frame: r_sole, mu: 0.5, fmin: 30}\n  - {frame: l_hand, mu: 0.5, fmin: 5}\n",
+    )  # fmt: skip
+    assert error_of(path).startswith(
+        f"{path}: contacts[2].cop: the robot has no sole size for frame 'l_hand'"
+    )
+
+
+def test_a_shorter_duration_override_moves_the_window_inside_the_run() -> None:
+    assert load_scenario(BASE).spec.metrics.window == (1.0, 9.0)
+    assert load_scenario(BASE, ("duration=3",)).spec.metrics.window == (1.0, 3.0)
+    assert load_scenario(BASE, ("duration=0.5",)).spec.metrics.window == (0.25, 0.5)
+    # an explicit window is the user's: checked, not moved
+    msg = error_of(BASE, ("duration=0.5", "metrics.window=[1, 9]"))
+    assert msg == f"{BASE}: metrics.window: ends at 9 s, after the duration of 0.5 s"

@@ -60,13 +60,12 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 
 def _load_checked(names: Sequence[str], overrides: Sequence[str] = ()) -> list:
-    from wbcbench.robots.loader import load_robot
-    from wbcbench.scenarios.load import check_against_robot, load_scenario
+    from wbcbench.scenarios.load import check_against_robot, load_scenario, load_scenario_robot
 
     out = []
     for name in names:
         loaded = load_scenario(name, list(overrides))
-        robot = load_robot(loaded.spec.robot, base_dir=loaded.path.parent)
+        robot = load_scenario_robot(loaded)
         check_against_robot(loaded, robot)
         out.append(loaded)
     return out

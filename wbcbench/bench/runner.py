@@ -18,8 +18,7 @@ from wbcbench.bench.checks import ReportedCheck
 from wbcbench.bench.results import ResultsStore
 from wbcbench.errors import WbcBenchError
 from wbcbench.metrics.run_metrics import run_metrics
-from wbcbench.robots.loader import load_robot
-from wbcbench.scenarios.load import LoadedScenario, build_contacts
+from wbcbench.scenarios.load import LoadedScenario, build_contacts, load_scenario_robot
 from wbcbench.sim.closed_loop import RunResult, RunSettings, run_closed_loop
 
 
@@ -111,7 +110,7 @@ def compute_tracking(
     result: RunResult | None = None
     log = None
     try:
-        robot = load_robot(spec.robot, base_dir=loaded.path.parent)
+        robot = load_scenario_robot(loaded)
         checker = ReportedCheck(check_tol) if check_tol else None
         result = run_closed_loop(
             loaded,

@@ -9,6 +9,7 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -216,22 +217,136 @@ def load_scenario(
     """Read and validate a scenario (schema only; see :func:`check_against_robot`)."""
     path = resolve_scenario_path(name_or_path)
     file = str(path)
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ScenarioError(file, "", f"not valid YAML: {exc}") from None
-    if not isinstance(raw, dict):
-        raise ScenarioError(file, "", "a scenario file must be a mapping of keys to values")
+    raw = read_yaml_mapping(path, "a scenario file")
     for assignment in overrides:
         apply_override(raw, assignment, file)
+    _fit_window_to_overridden_duration(raw, overrides)
     raw.setdefault("name", path.stem)
     try:
         spec = Scenario.model_validate(raw)
     except ValidationError as exc:
         raise validation_error(file, exc) from None
+    except RecursionError:
+        raise ScenarioError(file, "", "nested too deeply to be a scenario") from None
     for i, task in enumerate(spec.tasks):
         _check_reference_dim(file, i, task)
+        _check_gains(file, i, task)
+    _check_consistency(file, spec)
     return LoadedScenario(spec, path, tuple(overrides))
+
+
+def _fit_window_to_overridden_duration(raw: dict[str, Any], overrides: Sequence[str]) -> None:
+    """An override that shortens ``duration`` below the end of the file's metrics window (and
+    says nothing of the window) moves the window inside the run, to ``[min(t0, d/2), d]``, as a
+    sweep's ``max_duration`` does; a file whose own window outlasts its duration is an error."""
+    keys = {a.split("=", 1)[0].strip() for a in overrides}
+    if "duration" not in keys or keys & {"metrics", "metrics.window"}:
+        return
+    duration, metrics = raw.get("duration"), raw.get("metrics")
+    if not isinstance(metrics, dict):
+        return
+    window = metrics.get("window")
+    numbers = (int, float)
+    if (
+        isinstance(duration, numbers)
+        and isinstance(window, list)
+        and len(window) == 2
+        and all(isinstance(v, numbers) for v in window)
+        and window[1] > duration > 0
+    ):
+        metrics["window"] = [min(window[0], duration / 2), duration]
+
+
+def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
+    """The YAML mapping in ``path``; every way a file can be unreadable is a ScenarioError
+    naming it (a folder, another encoding than UTF-8, binary data, absurd nesting, not YAML)."""
+    file = str(path)
+    if path.is_dir():
+        raise ScenarioError(file, "", f"is a folder, not {what}")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(
+            file,
+            "",
+            f"is not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset {exc.start}); "
+            "save it as UTF-8",
+        ) from None
+    except OSError as exc:
+        raise ScenarioError(file, "", f"cannot be read: {exc.strerror or exc}") from None
+    if "\x00" in text:
+        raise ScenarioError(file, "", f"holds binary data (a NUL byte), not {what}")
+    try:
+        raw = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ScenarioError(file, "", f"not valid YAML: {exc}") from None
+    except RecursionError:
+        raise ScenarioError(file, "", f"nested too deeply to be {what}") from None
+    if not isinstance(raw, dict):
+        raise ScenarioError(file, "", f"{what} must be a mapping of keys to values")
+    return raw
+
+
+def _check_gains(file: str, i: int, task: TaskSpec) -> None:
+    """Gains are ≥ 0, and a gain vector has one value per axis of a frame or CoM task."""
+    dim = len(task.selected_axes)
+    for name in ("kp", "kv"):
+        gain = getattr(task, name)
+        values = gain if isinstance(gain, list) else [gain]
+        if any(v < 0 for v in values):
+            raise ScenarioError(file, f"tasks[{i}].{name}", f"gains must be ≥ 0, got {gain}")
+        if isinstance(gain, list) and dim and len(gain) != dim:
+            raise ScenarioError(
+                file,
+                f"tasks[{i}].{name}",
+                f"expected one value or {dim} (one per axis {', '.join(task.selected_axes)}), "
+                f"got {len(gain)}",
+            )
+
+
+def _check_consistency(file: str, spec: Scenario) -> None:
+    """Checks across fields, each naming the key it blames."""
+    seen: dict[str, int] = {}
+    for i, t in enumerate(spec.tasks):
+        if t.name in seen:
+            raise ScenarioError(
+                file, f"tasks[{i}].name", f"task name {t.name!r} is already tasks[{seen[t.name]}]"
+            )
+        seen[t.name] = i
+    frames: dict[str, int] = {}
+    for i, c in enumerate(spec.contacts):
+        if c.frame in frames:
+            raise ScenarioError(
+                file,
+                f"contacts[{i}].frame",
+                f"frame {c.frame!r} already holds contacts[{frames[c.frame]}]; a frame holds one",
+            )
+        frames[c.frame] = i
+        if c.fmax is not None and c.fmax < c.fmin:
+            raise ScenarioError(
+                file, f"contacts[{i}].fmax", f"fmax = {c.fmax:g} N is below fmin = {c.fmin:g} N"
+            )
+    if spec.metrics.window is not None:
+        t0, t1 = spec.metrics.window
+        if not 0 <= t0 < t1:
+            raise ScenarioError(file, "metrics.window", f"must satisfy 0 ≤ t0 < t1, got {[t0, t1]}")
+        if t1 > spec.duration + 1e-9:
+            raise ScenarioError(
+                file,
+                "metrics.window",
+                f"ends at {t1:g} s, after the duration of {spec.duration:g} s",
+            )
+    if spec.kind == "dynamic":
+        steps = 1.0 / (spec.control_rate * spec.sim.timestep)
+        if abs(steps - round(steps)) > 1e-6 * max(1.0, steps) or round(steps) < 1:
+            hint = 1.0 / (max(1, round(steps)) * spec.sim.timestep)
+            raise ScenarioError(
+                file,
+                "control_rate",
+                f"the control period 1/{spec.control_rate:g} s must be a whole number (≥ 1) of "
+                f"physics steps of sim.timestep = {spec.sim.timestep:g} s; e.g. control_rate: "
+                f"{hint:g}",
+            )
 
 
 def _check_reference_dim(file: str, i: int, task: TaskSpec) -> None:
@@ -260,6 +375,18 @@ def _check_reference_dim(file: str, i: int, task: TaskSpec) -> None:
 # -- checks against the robot and the registries
 
 
+def load_scenario_robot(loaded: LoadedScenario) -> Any:
+    """The scenario's robot; a robot that cannot be loaded is an error at the key ``robot``."""
+    from wbcbench.robots.loader import load_robot
+
+    try:
+        return load_robot(loaded.spec.robot, base_dir=loaded.path.parent)
+    except ScenarioError:
+        raise
+    except WbcBenchError as exc:
+        raise ScenarioError(str(loaded.path), "robot", str(exc)) from None
+
+
 def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
     """Frames, joints, keyframe and controller settings named by the scenario must exist."""
     from wbcbench.controllers.registry import controller_class
@@ -281,6 +408,13 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
         )
     for i, c in enumerate(spec.contacts):
         frame(f"contacts[{i}].frame", c.frame)
+        if c.cop is None and (robot.info is None or robot.info.sole_box(c.frame) is None):
+            raise ScenarioError(
+                file,
+                f"contacts[{i}].cop",
+                f"the robot has no sole size for frame {c.frame!r}: give "
+                "'cop: {x: [min, max], y: [min, max]}' [m] in the contact frame",
+            )
     for i, t in enumerate(spec.tasks):
         if t.frame is not None:
             frame(f"tasks[{i}].frame", t.frame)
