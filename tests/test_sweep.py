@@ -183,7 +183,7 @@ def test_a_solver_that_raises_or_lies_becomes_a_failure_row(
     monkeypatch.setattr(DAQPSolver, "_solve_fresh", raises)
     monkeypatch.setattr(QuadprogSolver, "_solve_fresh", lies)
     text = TINY.format(tracking_solvers="daqp, proxqp", timing_solvers="quadprog, proxqp")
-    text = text.replace("duration=0.06", "duration=0.05") + (
+    text = text.replace("duration=0.06", "duration=0.05").replace("0.0, 0.06]", "0.0, 0.05]") + (
         "solver_comparison:\n  scenarios: [tocabi_stand_sway]\n  controllers: [qp_wbc]\n"
         "  solvers: [quadprog, proxqp]\n  tiers: [default]\n  modes: [cold]\n"
         "  dump_ticks: 1\n  dump_after: 1\n"
