@@ -15,7 +15,7 @@ LOCK_VENV         := .venv-lock
 LOCK_FLAGS        := --extra dev --all-build-deps --allow-unsafe --strip-extras \
                      --no-emit-index-url --no-emit-find-links --no-emit-trusted-host
 
-.PHONY: venv test test-fast lint bench bench-full bench-micro reference models clean lock upgrade
+.PHONY: venv native test test-fast lint bench bench-full bench-micro reference models clean lock upgrade
 
 venv: $(STAMP)
 
@@ -27,6 +27,11 @@ $(STAMP): pyproject.toml $(LOCK)
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	$(PY) -m pip check
 	touch $(STAMP)
+
+# After editing the C++ of wbcbench/_native/src: rebuild the module; the build folder (build/)
+# persists, so only what changed recompiles.
+native: $(STAMP)
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 
 # pip-tools lives in its own environment, so that the tested one holds only the lock
 $(LOCK_VENV)/bin/pip-compile:

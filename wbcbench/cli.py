@@ -53,6 +53,9 @@ def _cmd_list(args: argparse.Namespace) -> int:
     print("scenarios:")
     for name in available_scenarios():
         print(f"  {name}")
+    from wbcbench import _native
+
+    print(f"native module: {_native.describe_status()}")
     print("environment (installed packages against the lock):")
     for line in describe_lock_status(lock_status()):
         print(f"  {line}")

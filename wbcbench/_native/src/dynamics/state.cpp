@@ -1,0 +1,107 @@
+// The one translation unit that includes Pinocchio's algorithms (they are costly to compile).
+#include "dynamics/state.hpp"
+
+#include <chrono>
+#include <pinocchio/algorithm/center-of-mass.hpp>
+#include <pinocchio/algorithm/centroidal.hpp>
+#include <pinocchio/algorithm/compute-all-terms.hpp>
+#include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/multibody.hpp>
+#include <pinocchio/serialization.hpp>
+#include <stdexcept>
+
+namespace wbcbench {
+
+namespace pin = pinocchio;
+
+struct RobotDynamics::Impl {
+  pin::Model model;
+  std::unique_ptr<pin::Data> data;
+  std::vector<pin::FrameIndex> task_ids, contact_ids;
+  Vector a0;
+};
+
+static pin::FrameIndex frame_index(const pin::Model& model, const std::string& name) {
+  if (!model.existFrame(name)) throw std::invalid_argument("unknown frame '" + name + "'");
+  return model.getFrameId(name);
+}
+
+RobotDynamics::RobotDynamics(const std::string& model,
+                             const std::vector<std::string>& task_frames,
+                             const std::vector<std::string>& contact_frames)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->model.loadFromString(model);
+  const pin::Model& m = impl_->model;
+  impl_->data = std::make_unique<pin::Data>(m);
+  for (const auto& f : task_frames) impl_->task_ids.push_back(frame_index(m, f));
+  for (const auto& f : contact_frames) impl_->contact_ids.push_back(frame_index(m, f));
+  const int nv = m.nv;
+  const int nc = 6 * static_cast<int>(contact_frames.size());
+  impl_->a0 = Vector::Zero(nv);
+  M_.setZero(nv, nv);
+  Minv_.setZero(nv, nv);
+  Jcom_.setZero(3, nv);
+  Ag_.setZero(6, nv);
+  J_contact_.setZero(nc, nv);
+  jac_buffer_.setZero(6, nv);
+  h_.setZero(nv);
+  g_.setZero(nv);
+  com_.setZero(3);
+  acom_.setZero(3);
+  dJv_contact_.setZero(nc);
+  J_task_.assign(task_frames.size(), Matrix::Zero(6, nv));
+  dJv_task_.assign(task_frames.size(), Vector::Zero(6));
+  llt_ = Eigen::LLT<Matrix>(nv);
+}
+
+RobotDynamics::~RobotDynamics() = default;
+
+int RobotDynamics::nq() const { return impl_->model.nq; }
+int RobotDynamics::nv() const { return impl_->model.nv; }
+double RobotDynamics::mass() const { return impl_->data->mass[0]; }
+
+std::vector<std::string> RobotDynamics::joint_names() const {
+  return std::vector<std::string>(impl_->model.names.begin(), impl_->model.names.end());
+}
+
+double RobotDynamics::update(const Eigen::Ref<const Vector>& q,
+                             const Eigen::Ref<const Vector>& v) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const pin::Model& m = impl_->model;
+  pin::Data& d = *impl_->data;
+  if (q.size() != m.nq || v.size() != m.nv) throw std::invalid_argument("q or v of wrong size");
+  // RobotState._terms: kinematics, M, nonlinear effects, gravity, Jacobians, CoM, CMM
+  pin::computeAllTerms(m, d, q, v);
+  pin::updateFramePlacements(m, d);
+  // RobotState._drifts: second-order kinematics at zero q̈ (data.a) and the CoM drift
+  pin::centerOfMass(m, d, q, v, impl_->a0, false);
+
+  M_.triangularView<Eigen::Upper>() = d.M.triangularView<Eigen::Upper>();
+  M_.triangularView<Eigen::StrictlyLower>() = M_.transpose().triangularView<Eigen::StrictlyLower>();
+  llt_.compute(M_);
+  Minv_.setIdentity();
+  llt_.solveInPlace(Minv_);
+  h_ = d.nle;
+  g_ = d.g;
+  com_ = d.com[0];
+  Jcom_ = d.Jcom;
+  acom_ = d.acom[0];
+  Ag_ = d.Ag;
+  for (size_t i = 0; i < impl_->task_ids.size(); ++i) {
+    const auto fid = impl_->task_ids[i];
+    J_task_[i].setZero();
+    pin::getFrameJacobian(m, d, fid, pin::LOCAL_WORLD_ALIGNED, J_task_[i]);
+    dJv_task_[i] = pin::getFrameClassicalAcceleration(m, d, fid, pin::LOCAL_WORLD_ALIGNED).toVector();
+  }
+  for (size_t i = 0; i < impl_->contact_ids.size(); ++i) {
+    const auto fid = impl_->contact_ids[i];
+    jac_buffer_.setZero();
+    pin::getFrameJacobian(m, d, fid, pin::LOCAL, jac_buffer_);
+    J_contact_.middleRows(6 * i, 6) = jac_buffer_;
+    dJv_contact_.segment(6 * i, 6) = pin::getFrameAcceleration(m, d, fid, pin::LOCAL).toVector();
+  }
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace wbcbench

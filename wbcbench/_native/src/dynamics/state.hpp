@@ -1,0 +1,62 @@
+// Per-tick dynamics of one robot, computed once per control tick: the native mirror of
+// wbcbench/dynamics/state.py (RobotState). Same conventions: Pinocchio's q and body-frame base
+// velocity; task Jacobians and drifts LOCAL_WORLD_ALIGNED, contact ones LOCAL.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Cholesky>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace wbcbench {
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using Matrix = Eigen::MatrixXd;
+using Vector = Eigen::VectorXd;
+
+// Mirrors RobotState: M, its Cholesky factor, h, g, the CoM, its Jacobian and drift, the
+// centroidal momentum matrix and the Jacobians and drifts of the frames named at set-up.
+// Buffers are sized at construction; update() allocates nothing.
+class RobotDynamics {
+ public:
+  // model: Pinocchio's text serialisation of the robot's model (pin.Model.saveToString());
+  // task_frames / contact_frames: the frames whose Jacobian and drift every tick needs.
+  RobotDynamics(const std::string& model, const std::vector<std::string>& task_frames,
+                const std::vector<std::string>& contact_frames);
+  ~RobotDynamics();
+
+  // One Pinocchio pass at (q, v); q (nq,), v (nv,). Returns the time it took [s].
+  double update(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v);
+
+  int nq() const;
+  int nv() const;
+  double mass() const;
+  std::vector<std::string> joint_names() const;
+
+  // The quantities of the last update(); shapes as in RobotState.
+  const Matrix& M() const { return M_; }             // (nv, nv), both triangles
+  const Matrix& Minv() const { return Minv_; }       // (nv, nv), by the Cholesky factor
+  const Vector& h() const { return h_; }             // (nv,)
+  const Vector& g() const { return g_; }             // (nv,)
+  const Vector& com() const { return com_; }         // (3,)
+  const Matrix& J_com() const { return Jcom_; }      // (3, nv)
+  const Vector& com_drift() const { return acom_; }  // (3,)
+  const Matrix& cmm() const { return Ag_; }          // (6, nv)
+  const Matrix& task_jacobian(int i) const { return J_task_.at(i); }  // (6, nv)
+  const Vector& task_drift(int i) const { return dJv_task_.at(i); }   // (6,)
+  const Matrix& contact_jacobian() const { return J_contact_; }      // (6c, nv)
+  const Vector& contact_drift() const { return dJv_contact_; }       // (6c,)
+  const Eigen::LLT<Matrix>& M_factor() const { return llt_; }
+
+ private:
+  struct Impl;  // Pinocchio's model and data: only state.cpp includes Pinocchio
+  std::unique_ptr<Impl> impl_;
+  Matrix M_, Minv_, Jcom_, Ag_, J_contact_, jac_buffer_;
+  Vector h_, g_, com_, acom_, dJv_contact_;
+  std::vector<Matrix> J_task_;
+  std::vector<Vector> dJv_task_;
+  Eigen::LLT<Matrix> llt_;
+};
+
+}  // namespace wbcbench
