@@ -344,6 +344,17 @@ def _results_dir(path: str) -> Path:
     return folder
 
 
+def add_set_option(p: argparse.ArgumentParser) -> None:
+    """``--set KEY=VALUE``: a scenario override, validated like the file."""
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario field by its dotted path, validated like the file (repeatable)",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="wbcbench", description="Benchmark humanoid whole-body controllers and QP solvers."
@@ -358,13 +369,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "scenarios", nargs="+", metavar="SCENARIO", help="scenario files or names in scenarios/"
     )
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario field by its dotted path (validated like the file)",
-    )
+    add_set_option(p)
     p.set_defaults(func=_cmd_validate)
 
     def run_options(
@@ -402,13 +407,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="closed-loop runs of one scenario")
     p.add_argument("scenario", metavar="SCENARIO", help="a scenario file or a name in scenarios/")
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario field by its dotted path (validated like the file)",
-    )
+    add_set_option(p)
     run_options(p, "results/run")
     p.set_defaults(func=_cmd_run)
 
@@ -454,13 +453,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--scenario", action="append", metavar="GLOB", help="scenario names or globs (repeatable)"
     )
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario field by its dotted path (repeatable)",
-    )
+    add_set_option(p)
     p.add_argument(
         "--timing",
         action="store_true",
