@@ -337,3 +337,32 @@ def test_a_recorder_that_falls_inside_the_window_hands_over_to_the_next(
     assert json.loads(row["settings"])["recorder"] == "lqp"
     recordings = sorted(path.name for path in (tmp_path / "out" / "recordings").glob("*.npz"))
     assert [name.split("-")[-2] for name in recordings] == ["lqp", "qp_wbc"]
+
+
+def test_the_resume_key_follows_the_code_not_the_commit(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An edit of the code, committed or not, recomputes a stored row; docs do not count."""
+    from wbcbench.bench import provenance
+
+    tree = tmp_path / "pkg"
+    (tree / "controllers").mkdir(parents=True)
+    source = tree / "controllers" / "qp_wbc.py"
+    source.write_text("tau = solve()\n")
+    (tree / "README.md").write_text("docs\n")
+    before = provenance.tree_hash(tree).hexdigest()
+    (tree / "README.md").write_text("docs, edited\n")
+    assert provenance.tree_hash(tree).hexdigest() == before
+    source.write_text("tau = 0 * solve()\n")  # the zero-torque edit, not committed
+    assert provenance.tree_hash(tree).hexdigest() != before
+
+    path = tiny(tmp_path, tracking="daqp")
+    p = plan_tracking_only(path)
+    first = run_sweep(p, tmp_path / "out", show_progress=False)
+    again = run_sweep(p, tmp_path / "out", show_progress=False)
+    assert (first.computed, again.computed, again.resumed) == (1, 0, 1)
+    monkeypatch.setattr(provenance, "source_hash", lambda: "0123456789ab")
+    edited = run_sweep(p, tmp_path / "out", show_progress=False)
+    assert (edited.computed, edited.resumed) == (1, 0)
+    runs = pd.read_csv(tmp_path / "out" / "runs.csv")
+    assert runs["code_version"].iloc[-1].startswith("0.1.0+src.0123456789ab@")

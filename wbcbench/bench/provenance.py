@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import datetime as _dt
+import functools
+import hashlib
 import os
 import platform
 import re
@@ -73,6 +75,36 @@ def git_commit() -> str:
         return "unknown"
 
 
+#: the files of the package whose content can change a result (code, models, native sources)
+_SOURCE_SUFFIXES = (".py", ".xml", ".cpp", ".hpp", ".so")
+
+
+def tree_hash(root: Path, digest: Any = None) -> Any:
+    """Feed the code files under ``root`` (name and content, in a fixed order) to a sha256."""
+    digest = hashlib.sha256() if digest is None else digest
+    for path in sorted(root.rglob("*")):
+        if path.suffix in _SOURCE_SUFFIXES and "__pycache__" not in path.parts and path.is_file():
+            digest.update(str(path.relative_to(root)).encode())
+            digest.update(path.read_bytes())
+    return digest
+
+
+@functools.cache
+def source_hash() -> str:
+    """12 hex digits of the content of the package's code: every ``.py``, model and C++ file
+    and the built native module, uncommitted edits included, so a result is tied to the code
+    that produced it (docs, tests and results do not count)."""
+    digest = tree_hash(Path(wbcbench.__file__).resolve().parent)
+    try:  # an editable install keeps the compiled module outside the source folder
+        from wbcbench._native import _core
+
+        if _core is not None and getattr(_core, "__file__", None):
+            digest.update(Path(_core.__file__).read_bytes())
+    except ImportError:
+        pass
+    return digest.hexdigest()[:12]
+
+
 def package_versions() -> dict[str, str]:
     out = {}
     for name in PACKAGES:
@@ -139,6 +171,7 @@ def provenance() -> dict[str, Any]:
     return {
         "wbcbench": wbcbench.__version__,
         "git_commit": git_commit(),
+        "source_hash": source_hash(),
         "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "cpu": cpu_model(),
         "cores": os.cpu_count(),

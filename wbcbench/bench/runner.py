@@ -23,8 +23,14 @@ from wbcbench.sim.closed_loop import RunResult, RunSettings, run_closed_loop
 
 
 def code_version(store: ResultsStore) -> str:
-    """Package version and commit (without the dirty mark, so edits to docs do not re-run)."""
-    return f"{store.provenance['wbcbench']}@{store.provenance['git_commit'].split('+')[0]}"
+    """``<version>+src.<source hash>@<commit>[+dirty]``: the code a row was measured with.
+
+    The part before ``@`` (package version and the content hash of its code, uncommitted
+    edits included) is what :func:`run_id` keys on: any edit of the code recomputes a row,
+    while a commit or an edit that touches only docs or tests resumes it.
+    """
+    info = store.provenance
+    return f"{info['wbcbench']}+src.{info['source_hash']}@{info['git_commit']}"
 
 
 def run_id(
@@ -44,7 +50,7 @@ def run_id(
         settings.tier,
         settings.mode,
         seed,
-        version,
+        version.split("@", 1)[0],
     ]
     if extra:  # absent for plain tracking runs, so their ids stay what they were
         parts.append(extra)

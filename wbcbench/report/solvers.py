@@ -200,7 +200,7 @@ def compare_on_problems(
                 handle = None
                 for path in seq:
                     problem = loaded[path]
-                    key = f"{keys[path]}:{solver}:{tier}:{mode}:{version}"
+                    key = f"{keys[path]}:{solver}:{tier}:{mode}:{version.split('@', 1)[0]}"
                     if key in done:
                         handle = None  # a resumed sequence restarts its handle
                         continue
