@@ -216,3 +216,25 @@ def test_wbc_like_problem(name: str, mode: str) -> None:
         assert v.distance_to(WBC_REF) <= 1e-6 * scale, v.distance_to(WBC_REF)
     if name == "quadprog":
         assert "H not positive definite: solved with H + " in sol.message
+
+
+@pytest.mark.parametrize("name", ["osqp", "clarabel", "daqp", "highs", "qpoases"])
+def test_every_tier_caps_the_solve_time(name: str) -> None:
+    """A stalled solve ends as a failure at the tier's time cap, never holds the run."""
+    from wbcbench.qp.settings import TIER_TIME_LIMIT
+
+    if name not in INSTALLED:
+        pytest.skip(f"{name} is not installed")
+    for tier in ("default", "low", "mid", "high"):
+        options = make_solver(name, tier=tier).options
+        assert TIER_TIME_LIMIT[tier] in options.values(), (name, tier, options)
+
+
+def test_a_solve_past_its_time_cap_fails_as_max_iter() -> None:
+    rng = np.random.default_rng(0)
+    n = 300
+    M = rng.standard_normal((n, n))
+    problem = Problem(H=M @ M.T + 1e-3 * np.eye(n), g=rng.standard_normal(n),
+                      C=rng.standard_normal((n, n)), l=-np.ones(n), u=np.ones(n))  # fmt: skip
+    sol = make_solver("osqp", tier="high", time_limit=1e-6).solve(problem)
+    assert sol.status == SolutionStatus.MAX_ITER, sol.message

@@ -70,7 +70,11 @@ class QPSolver(ABC):
         self.tier = check_tier(tier)
         self.requested_mode = check_mode(mode)
         self.mode = effective_mode(mode, self.warm_start, self.hot_start)
-        self.options: dict[str, Any] = {**self.tier_settings(tier), **options}
+        self.options: dict[str, Any] = {
+            **self.tier_caps(tier),
+            **self.tier_settings(tier),
+            **options,
+        }
         self.previous: Solution | None = None
         self.builds = 0  # native objects built by _solve_fresh with keep=True
         self._native: Any = None
@@ -81,6 +85,12 @@ class QPSolver(ABC):
     @staticmethod
     def tier_settings(tier: str) -> dict[str, Any]:
         """Native settings realising ``tier`` for this backend (empty for ``default``)."""
+        return {}
+
+    @staticmethod
+    def tier_caps(tier: str) -> dict[str, Any]:
+        """Native time / iteration caps of ``tier`` (:data:`~wbcbench.qp.settings.
+        TIER_TIME_LIMIT`), for the backends whose library has them; every tier has caps."""
         return {}
 
     @abstractmethod

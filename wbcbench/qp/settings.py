@@ -30,6 +30,12 @@ MODES: tuple[str, ...] = ("cold", "warm", "hot")
 #: Absolute primal / dual / duality-gap tolerance of each non-default tier.
 TIER_EPS: dict[str, float] = {"low": 1e-3, "mid": 1e-6, "high": 1e-9}
 
+#: Wall-time cap of one solve at each tier [s], for every backend whose library has one (and
+#: an iteration cap where its default is unbounded): a whole-body QP still running after this
+#: has stalled, and the solve ends as a failure (``max_iter``) instead of holding the run. A
+#: cap, not an accuracy setting: the default tier keeps each solver's tolerances.
+TIER_TIME_LIMIT: dict[str, float] = {"default": 5.0, "low": 5.0, "mid": 10.0, "high": 30.0}
+
 TIER_HINT = (
     "Tiers set absolute primal, dual and duality-gap tolerances: low 1e-3, mid 1e-6, "
     "high 1e-9; default keeps each solver's own settings"

@@ -35,6 +35,7 @@ from wbcbench.qp.backends._common import (
 )
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Array, Problem
+from wbcbench.qp.settings import TIER_TIME_LIMIT
 from wbcbench.qp.solution import Solution, SolutionStatus
 
 LIBRARY = "clarabel"
@@ -80,6 +81,10 @@ class ClarabelSolver(QPSolver):
     warm_start = False
     hot_start = True
     internal_time_covers = "solve"
+
+    @staticmethod
+    def tier_caps(tier: str) -> dict[str, Any]:
+        return {"time_limit": TIER_TIME_LIMIT[tier]}
 
     @staticmethod
     def tier_settings(tier: str) -> dict[str, Any]:

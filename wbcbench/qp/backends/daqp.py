@@ -31,6 +31,7 @@ import numpy as np
 from wbcbench.qp.backends._common import tier_eps
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Array, Problem
+from wbcbench.qp.settings import TIER_TIME_LIMIT
 from wbcbench.qp.solution import Solution, SolutionStatus
 
 LIBRARY = "daqp"
@@ -90,6 +91,10 @@ class DAQPSolver(QPSolver):
     warm_start = True
     hot_start = True
     internal_time_covers = "solve"
+
+    @staticmethod
+    def tier_caps(tier: str) -> dict[str, Any]:
+        return {"time_limit": TIER_TIME_LIMIT[tier]}
 
     @staticmethod
     def tier_settings(tier: str) -> dict[str, Any]:

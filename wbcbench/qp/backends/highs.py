@@ -26,6 +26,7 @@ import scipy.sparse as sp
 from wbcbench.qp.backends._common import tier_eps
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Problem
+from wbcbench.qp.settings import TIER_TIME_LIMIT
 from wbcbench.qp.solution import Solution, SolutionStatus
 
 LIBRARY = "highspy"
@@ -81,6 +82,11 @@ class HiGHSSolver(QPSolver):
     warm_start = False
     hot_start = True
     internal_time_covers = "solve"
+
+    @staticmethod
+    def tier_caps(tier: str) -> dict[str, Any]:
+        # HiGHS's QP iteration limit is unbounded by default
+        return {"time_limit": TIER_TIME_LIMIT[tier], "qp_iteration_limit": 1_000_000}
 
     @staticmethod
     def tier_settings(tier: str) -> dict[str, Any]:

@@ -28,6 +28,7 @@ import numpy as np
 
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Problem
+from wbcbench.qp.settings import TIER_TIME_LIMIT
 from wbcbench.qp.solution import Solution, SolutionStatus
 
 LIBRARY = "casadi"
@@ -76,6 +77,10 @@ class QpOASESSolver(QPSolver):
     warm_start = False
     hot_start = True
     internal_time_covers = "solve"
+
+    @staticmethod
+    def tier_caps(tier: str) -> dict[str, Any]:
+        return {"CPUtime": TIER_TIME_LIMIT[tier]}
 
     def _build(self, problem: Problem) -> Any:
         m = problem.n_eq + problem.n_in
