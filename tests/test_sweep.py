@@ -366,3 +366,37 @@ def test_the_resume_key_follows_the_code_not_the_commit(
     assert (edited.computed, edited.resumed) == (1, 0)
     runs = pd.read_csv(tmp_path / "out" / "runs.csv")
     assert runs["code_version"].iloc[-1].startswith("0.1.0+src.0123456789ab@")
+
+
+def test_a_store_repairs_what_a_kill_mid_write_leaves(tmp_path: Path) -> None:
+    """A torn last line is cut and metrics without a run row are dropped, so the rerun
+    matches an uninterrupted sweep: no row lost, duplicated or unreadable."""
+    from wbcbench.bench.results import ResultsStore
+
+    path = tiny(tmp_path, tracking="daqp, quadprog")
+    clean = tmp_path / "clean"
+    run_sweep(plan_tracking_only(path), clean, show_progress=False)
+    killed = tmp_path / "killed"
+    run_sweep(plan_tracking_only(path), killed, show_progress=False, max_jobs=1)
+    # a kill after the metrics of the second run but before its row, then one mid-line
+    stored = pd.read_csv(clean / "metrics.csv")
+    second = stored[~stored["run_id"].isin(pd.read_csv(killed / "runs.csv")["run_id"])]
+    with (killed / "metrics.csv").open("a") as fh:
+        fh.write(second.to_csv(index=False, header=False))
+    with (killed / "runs.csv").open("a") as fh:
+        fh.write("deadbeef,tocabi_stand_sway,abc")  # torn: no newline
+    store = ResultsStore(killed)
+    assert any("torn" in r for r in store.repaired)
+    assert any("unfinished runs" in r for r in store.repaired)
+    report = run_sweep(plan_tracking_only(path), killed, show_progress=False)
+    assert (report.computed, report.resumed) == (1, 1)
+    runs_a, runs_b = (pd.read_csv(f / "runs.csv") for f in (clean, killed))
+    assert sorted(runs_a["run_id"]) == sorted(runs_b["run_id"]) and runs_b["run_id"].is_unique
+    key = ["run_id", "task", "metric"]
+    a = pd.read_csv(clean / "metrics.csv").sort_values(key).reset_index(drop=True)
+    b = pd.read_csv(killed / "metrics.csv").sort_values(key).reset_index(drop=True)
+    assert len(a) == len(b)
+    err = a["metric"].str.startswith("err")
+    pd.testing.assert_frame_equal(a[err], b[err])
+    mirror = pd.read_parquet(killed / "runs.parquet")
+    assert len(mirror) == len(runs_b)

@@ -130,6 +130,7 @@ def _run_matrix(
             row = record.row
             note = f" — {row['message']}" if row.get("message") else ""
             print(f"{label}: {row['status']}{note}")
+    store.refresh_mirror()
     return summary_table(store.runs(), store.metrics())
 
 

@@ -4,6 +4,13 @@
 appended as each run finishes (so a crash loses nothing) and mirrored to Parquet;
 ``logs/<run_id>.parquet`` holds each run's per-tick log and ``provenance.json`` the machine,
 versions and code the results were measured with.
+
+Crash safety. A run is written log first, then its metrics, then its row, each line appended
+whole and flushed: the row is the commit mark. Opening a store repairs what a kill can leave:
+a torn last line (cut off), metrics whose run has no row (removed, so the rerun that computes
+the run again does not duplicate them). Appending costs O(1); the Parquet mirrors are rewritten
+atomically when a sweep ends and whenever a store is opened whose mirror is older than its
+tables, so a mirror is never behind once a sweep has finished or a store has been opened.
 """
 
 from __future__ import annotations
@@ -54,6 +61,7 @@ class ResultsStore:
         (self.folder / "logs").mkdir(exist_ok=True)
         self.runs_csv = self.folder / "runs.csv"
         self.metrics_csv = self.folder / "metrics.csv"
+        self.repaired = self._repair()
         self._write_provenance()
 
     def _write_provenance(self) -> None:
@@ -98,17 +106,57 @@ class ResultsStore:
         metrics: list[dict[str, Any]],
         log: dict[str, Any] | None = None,
     ) -> None:
-        """Append one run, its metrics and its per-tick log; refresh the Parquet mirrors."""
+        """Append one run: its per-tick log, its metrics, then its row (the commit mark)."""
         if log:
-            pd.DataFrame(log).to_parquet(self.folder / "logs" / f"{run['run_id']}.parquet")
+            path = self.folder / "logs" / f"{run['run_id']}.parquet"
+            tmp = path.with_suffix(".parquet.tmp")
+            pd.DataFrame(log).to_parquet(tmp)
+            os.replace(tmp, path)
         self._append(self.metrics_csv, METRIC_COLUMNS, metrics)
         self._append(self.runs_csv, RUN_COLUMNS, [run])
-        self._mirror()
 
-    def _mirror(self) -> None:
+    def refresh_mirror(self) -> None:
+        """Rewrite the Parquet mirrors of the tables (each to a temporary file, then renamed)."""
         for csv_path in (self.runs_csv, self.metrics_csv):
             if csv_path.exists():
-                pd.read_csv(csv_path).to_parquet(csv_path.with_suffix(".parquet"), index=False)
+                target = csv_path.with_suffix(".parquet")
+                tmp = csv_path.with_suffix(".parquet.tmp")
+                pd.read_csv(csv_path).to_parquet(tmp, index=False)
+                os.replace(tmp, target)
+
+    def _repair(self) -> list[str]:
+        """Undo what a kill mid-write can leave; returns what was repaired (for the log)."""
+        done: list[str] = []
+        for csv_path in (self.runs_csv, self.metrics_csv):
+            if not csv_path.exists():
+                continue
+            data = csv_path.read_bytes()
+            if data and not data.endswith(b"\n"):
+                keep = data[: data.rfind(b"\n") + 1]
+                tmp = csv_path.with_suffix(".csv.tmp")
+                tmp.write_bytes(keep)
+                os.replace(tmp, csv_path)
+                done.append(f"{csv_path.name}: cut a torn last line ({len(data) - len(keep)} B)")
+        if self.metrics_csv.exists() and self.metrics_csv.stat().st_size:
+            runs = set(self.runs()["run_id"]) if self.runs_csv.exists() else set()
+            metrics = self.metrics()
+            orphan = ~metrics["run_id"].isin(runs)
+            if orphan.any():
+                tmp = self.metrics_csv.with_suffix(".csv.tmp")
+                metrics[~orphan].to_csv(tmp, index=False)
+                os.replace(tmp, self.metrics_csv)
+                done.append(f"metrics.csv: removed {int(orphan.sum())} metrics of unfinished runs")
+        stale = any(
+            csv_path.exists()
+            and (
+                not csv_path.with_suffix(".parquet").exists()
+                or csv_path.with_suffix(".parquet").stat().st_mtime < csv_path.stat().st_mtime
+            )
+            for csv_path in (self.runs_csv, self.metrics_csv)
+        )
+        if done or stale:
+            self.refresh_mirror()
+        return done
 
     def runs(self) -> pd.DataFrame:
         if not self.runs_csv.exists():
@@ -149,5 +197,5 @@ class ResultsStore:
             os.replace(tmp, csv_path)
         for rid in run_ids:
             (self.folder / "logs" / f"{rid}.parquet").unlink(missing_ok=True)
-        self._mirror()
+        self.refresh_mirror()
         return int(gone.sum())

@@ -727,6 +727,7 @@ def run_sweep(
             bar.set_postfix_str(job.label[:60])
             finished(job, guarded_timing_job(job, rid, version, store.folder))
             bar.update()
+    store.refresh_mirror()
     final = store.run_statuses()
     for rid in planned_ids:
         status = final.get(rid)
