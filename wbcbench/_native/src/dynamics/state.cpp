@@ -52,6 +52,8 @@ RobotDynamics::RobotDynamics(const std::string& model,
   dJv_contact_.setZero(nc);
   J_task_.assign(task_frames.size(), Matrix::Zero(6, nv));
   dJv_task_.assign(task_frames.size(), Vector::Zero(6));
+  p_task_.assign(task_frames.size(), Vector::Zero(3));
+  R_task_.assign(task_frames.size(), Matrix::Identity(3, 3));
   llt_ = Eigen::LLT<Matrix>(nv);
 }
 
@@ -93,6 +95,8 @@ double RobotDynamics::update(const Eigen::Ref<const Vector>& q,
     J_task_[i].setZero();
     pin::getFrameJacobian(m, d, fid, pin::LOCAL_WORLD_ALIGNED, J_task_[i]);
     dJv_task_[i] = pin::getFrameClassicalAcceleration(m, d, fid, pin::LOCAL_WORLD_ALIGNED).toVector();
+    p_task_[i] = d.oMf[fid].translation();
+    R_task_[i] = d.oMf[fid].rotation();
   }
   for (size_t i = 0; i < impl_->contact_ids.size(); ++i) {
     const auto fid = impl_->contact_ids[i];

@@ -45,6 +45,8 @@ class RobotDynamics {
   const Matrix& cmm() const { return Ag_; }          // (6, nv)
   const Matrix& task_jacobian(int i) const { return J_task_.at(i); }  // (6, nv)
   const Vector& task_drift(int i) const { return dJv_task_.at(i); }   // (6,)
+  const Vector& task_position(int i) const { return p_task_.at(i); }  // (3,) world
+  const Matrix& task_rotation(int i) const { return R_task_.at(i); }  // (3, 3) world
   const Matrix& contact_jacobian() const { return J_contact_; }      // (6c, nv)
   const Vector& contact_drift() const { return dJv_contact_; }       // (6c,)
   const Eigen::LLT<Matrix>& M_factor() const { return llt_; }
@@ -55,7 +57,8 @@ class RobotDynamics {
   Matrix M_, Minv_, Jcom_, Ag_, J_contact_, jac_buffer_;
   Vector h_, g_, com_, acom_, dJv_contact_;
   std::vector<Matrix> J_task_;
-  std::vector<Vector> dJv_task_;
+  std::vector<Vector> dJv_task_, p_task_;
+  std::vector<Matrix> R_task_;
   Eigen::LLT<Matrix> llt_;
 };
 
