@@ -16,6 +16,7 @@ beside ours; ``make bench-micro`` runs the pytest-benchmark entries.
 from __future__ import annotations
 
 import functools
+import os
 from typing import Any
 
 import pytest
@@ -51,21 +52,27 @@ def medians(
     config: dict[str, Any],
     solver: str = SOLVER,
 ) -> dict[str, float]:
-    """Median [µs] of every stage the controller reports, over the recording."""
+    """Median [µs] of every stage the controller reports, over the recording; ``<stage>.iqr``
+    and ``<stage>.p99`` beside each."""
     settings = RunSettings(controller=controller, solver=solver, controller_config=config)
     timings = replay(loaded, rec, settings)
     out = {stage: timings.median_us(stage, WARMUP) for stage in timings.stages}
+    for stage in timings.stages:
+        q25, q75 = (timings.quantile_us(stage, q, WARMUP) for q in (0.25, 0.75))
+        out[f"{stage}.iqr"] = q75 - q25
+        out[f"{stage}.p99"] = timings.quantile_us(stage, 0.99, WARMUP)
     out["failures"] = float(timings.failures)
     return out
 
 
-def table3_iros(solver: str = SOLVER) -> dict[str, dict[str, float]]:
+def table3_iros(solver: str = SOLVER, impl: str = "native") -> dict[str, dict[str, float]]:
+    """Table III's controllers on the same states; osf_hqp in the given impl (hqp has only
+    the Python one)."""
     loaded, rec = recording("lee2021iros_table1", 3.0, 4.0)
+    osf = {"params": "inline", "impl": impl}
     return {
-        "osf_hqp_cod": medians(loaded, rec, "osf_hqp", {"params": "inline"}, solver),
-        "osf_hqp_svd": medians(
-            loaded, rec, "osf_hqp", {"params": "inline", "inverse": "svd"}, solver
-        ),
+        "osf_hqp_cod": medians(loaded, rec, "osf_hqp", osf, solver),
+        "osf_hqp_svd": medians(loaded, rec, "osf_hqp", {**osf, "inverse": "svd"}, solver),
         "hqp": medians(loaded, rec, "hqp", {"finals": ["wrench"]}, solver),
     }
 
@@ -92,7 +99,12 @@ def scenario4() -> dict[str, list[dict[str, float]]]:
         frame="r_hand", mu=0.5, fmin=30, cop=CopBox(x=(-0.02, 0.02), y=(-0.02, 0.02))
     )
     planes = [*loaded.spec.contacts, fourth]
-    cfg = {"params": "inline", "weights": [1e7], "wrench_weights": [1, 1, 0, 1, 1, 1]}
+    cfg = {
+        "params": "inline",
+        "weights": [1e7],
+        "wrench_weights": [1, 1, 0, 1, 1, 1],
+        "impl": "native",
+    }
     by_contacts = [
         {"planes": n, **medians(subset(loaded, 5, planes[:n]), rec, "to_osf", cfg)}
         for n in range(1, 5)
@@ -106,7 +118,7 @@ def table3_access() -> list[dict[str, float]]:
     rows = []
     for n in range(1, 6):
         sub = subset(loaded, n)
-        osf = medians(sub, rec, "to_osf", {"params": "inline"})
+        osf = medians(sub, rec, "to_osf", {"params": "inline", "impl": "python"})
         rows.append(
             {
                 "tasks": n,
@@ -140,10 +152,33 @@ PAPER_T3 = {"T1": 0.059, "T2": 0.068, "T3": 0.041, "T4": 0.099, "wrench": 0.038}
 PAPER_CONV = {"T1": 1.416, "T2": 1.764, "T3": 1.380, "T4": 3.176, "wrench": 1.527}
 
 
+def side_by_side(rows: dict[str, dict[str, float]], stages: list[str]) -> None:
+    """Median / IQR / p99 [µs] per stage for each named column (e.g. impls)."""
+    names = list(rows)
+    print(f"{'stage':<14}" + "".join(f"{n + ' median/IQR/p99':>30}" for n in names))
+    for stage in stages:
+        if all(stage not in r for r in rows.values()):
+            continue
+        cells = []
+        for r in rows.values():
+            if stage in r:
+                cells.append(f"{r[stage]:10.1f}{r[stage + '.iqr']:9.1f}{r[stage + '.p99']:11.1f}")
+            else:
+                cells.append(f"{'—':>30}")
+        print(f"{stage:<14}" + "".join(cells))
+
+
+STAGES = [
+    "dynamics", "params", "build", "solve", "solve_native",
+    "solve.T1", "solve.T2", "solve.T3", "solve.T4", "solve.wrench", "crossing", "total",
+]  # fmt: skip
+
+
 def main() -> None:
-    t = table3_iros()
-    o, s, h = t["osf_hqp_cod"], t["osf_hqp_svd"], t["hqp"]
-    print("OSF-HQP Table III (TOCABI-like, same recorded states, daqp) — median [µs]")
+    print(f"load average {os.getloadavg()[0]:.2f} (2-core machine: compare within one run)")
+    t = table3_iros(impl="python")
+    o, h = t["osf_hqp_cod"], t["hqp"]
+    print("OSF-HQP Table III (TOCABI-like, same recorded states, daqp, both impl: python)")
     print(f"{'level':<8} {'hqp':>9} {'osf_hqp':>9} {'ratio':>7}   paper conv / proposed [ms]")
     for lv in ("T1", "T2", "T3", "T4", "wrench"):
         hk = "solve.wrench" if lv == "wrench" else f"solve.L{lv[1:]}"
@@ -156,15 +191,8 @@ def main() -> None:
         "   9.263 / 0.303 (30.5x)"
     )
     print(
-        f"osf_hqp params (cod) {o['params']:.1f} µs, dynamics {o['dynamics']:.1f} µs; paper 0.64 ms"
-    )
-    print(
         f"full step: hqp {h['total']:.1f} µs, osf_hqp {o['total']:.1f} µs, ratio "
         f"{h['total'] / o['total']:.1f} (paper 9.8x, osf 0.94 ms)"
-    )
-    print(
-        f"COD vs SVD parameter time: {o['params']:.1f} vs {s['params']:.1f} µs"
-        " (paper 1.55 vs 4.27 ms)"
     )
     print(
         f"QP time without our Python layer (set-up + native call): hqp {native(h):.1f} µs, "
@@ -172,12 +200,26 @@ def main() -> None:
     )
     print(f"failures: hqp {h['failures']:.0f}, osf_hqp {o['failures']:.0f}")
     print()
-    print("Table III QP-time ratio hqp / osf_hqp by backend (same states) — median [µs]")
+    for solver in ("daqp", "qpoases"):
+        if solver not in available_solvers():
+            continue
+        runs = {impl: table3_iros(solver, impl) for impl in ("python", "native")}
+        print(f"osf_hqp full tick, Table I, {solver}, params inline — per stage [µs]")
+        side_by_side({impl: r["osf_hqp_cod"] for impl, r in runs.items()}, STAGES)
+        for impl, r in runs.items():
+            cod, svd = r["osf_hqp_cod"]["params"], r["osf_hqp_svd"]["params"]
+            print(
+                f"  {impl}: COD vs SVD parameter time {cod:.1f} vs {svd:.1f} µs, ratio "
+                f"{svd / cod:.2f} (paper 1.55 vs 4.27 ms, 2.75); failures "
+                f"{r['osf_hqp_cod']['failures']:.0f}"
+            )
+        print()
+    print("Table III QP-time ratio hqp / osf_hqp by backend (same states, impl: python)")
     print(f"{'backend':<10} {'hqp':>9} {'osf_hqp':>9} {'ratio':>6} {'native':>7}  failures")
     for solver in COMPARE:
         if solver not in available_solvers():
             continue
-        r = table3_iros(solver)
+        r = table3_iros(solver, "python")
         h, o = r["hqp"], r["osf_hqp_cod"]
         print(
             f"{solver:<10} {h['solve']:9.1f} {o['solve']:9.1f} {h['solve'] / o['solve']:6.1f}"
@@ -185,7 +227,7 @@ def main() -> None:
         )
     print()
     s4 = scenario4()
-    print("TO-OSF Scenario #4 — to_osf median [µs]: RT part (total − params) and params")
+    print("TO-OSF Scenario #4 — to_osf (impl native) median [µs]: RT part (total − params)")
     for row in s4["contacts"]:
         print(
             f"  {row['planes']} planes: RT {row['total'] - row['params']:8.1f}"
@@ -197,12 +239,13 @@ def main() -> None:
             f"  QP {row['solve']:7.1f}  params {row['params']:7.1f}"
         )
     print()
-    print("TO-OSF Table 3 — step time [µs], double support, home posture")
+    print("TO-OSF Table 3 — step time [µs], double support, home posture (impl: python)")
     for row in table3_access():
         print(
             f"  {row['tasks']} tasks ({row['dofs']:2d} DoF): hqp {row['hqp']:8.1f}"
             f"  to_osf {row['to_osf']:8.1f}  (RT part {row['to_osf_rt']:7.1f})"
         )
+    print(f"load average {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

@@ -62,10 +62,10 @@ def test_solver_failures_hold_the_last_torque_and_are_counted(
     real_solve = base.QPSolver.solve
     calls = {"n": 0}
 
-    def flaky(self, problem, x0=None, raise_on_failure=False):
+    def flaky(self, problem, x0=None, raise_on_failure=False, **kwargs):
         calls["n"] += 1
         if calls["n"] <= 20:
-            return real_solve(self, problem, x0, raise_on_failure)
+            return real_solve(self, problem, x0, raise_on_failure, **kwargs)
         return Solution(SolutionStatus.FAILED, solver="proxqp", message="injected failure")
 
     monkeypatch.setattr(base.QPSolver, "solve", flaky)

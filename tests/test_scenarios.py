@@ -111,7 +111,7 @@ def test_axes_invalid_for_the_task_type(tmp_path: Path) -> None:
 def test_controller_settings_are_validated(tmp_path: Path) -> None:
     assert error_of(BASE, ("controllers.qp_wbc.wieghts=[1, 2]",)) == (
         f"{BASE}: controllers.qp_wbc.wieghts: unknown key 'wieghts'; valid keys: "
-        "acceleration_weight, torque_weight, variables, weights, wrench_weight"
+        "acceleration_weight, impl, torque_weight, variables, weights, wrench_weight"
     )
     assert error_of(BASE, ("controllers.qp_wbc.variables=half",)) == (
         f"{BASE}: controllers.qp_wbc.variables: invalid value 'half'; valid choices: 'full' or "
@@ -170,3 +170,13 @@ def test_a_shorter_duration_override_moves_the_window_inside_the_run() -> None:
     # an explicit window is the user's: checked, not moved
     msg = error_of(BASE, ("duration=0.5", "metrics.window=[1, 9]"))
     assert msg == f"{BASE}: metrics.window: ends at 9 s, after the duration of 0.5 s"
+
+
+def test_impl_choices_are_named(tmp_path: Path) -> None:
+    assert error_of(BASE, ("controllers.qp_wbc.impl=fast",)) == (
+        f"{BASE}: controllers.qp_wbc.impl: invalid value 'fast'; valid choices: 'native' or "
+        "'python'"
+    )
+    assert error_of(BASE, ("controllers.hqp.impl=native",)) == (
+        f"{BASE}: controllers.hqp.impl: invalid value 'native'; valid choices: 'python'"
+    )

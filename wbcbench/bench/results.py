@@ -35,6 +35,7 @@ RUN_COLUMNS = (
     "solver",
     "tier",
     "mode",
+    "impl",
     "seed",
     "status",
     "fell",

@@ -33,6 +33,21 @@ def code_version(store: ResultsStore) -> str:
     return f"{info['wbcbench']}+src.{info['source_hash']}@{info['git_commit']}"
 
 
+def run_impl(loaded: LoadedScenario, settings: RunSettings) -> str:
+    """``native`` or ``python``: the implementation the run's controller runs (its setting, else
+    native where it has a native tick and the module is built); "" for an unknown controller."""
+    from wbcbench.controllers.base import resolve_impl
+    from wbcbench.controllers.registry import CONTROLLERS
+    from wbcbench.scenarios.load import controller_settings
+
+    cls = CONTROLLERS.get(settings.controller)
+    if cls is None:
+        return ""
+    merged = {**controller_settings(loaded, settings.controller), **settings.controller_config}
+    requested = merged.get("impl")
+    return resolve_impl(cls, requested if isinstance(requested, str) else None)
+
+
 def run_id(
     loaded: LoadedScenario,
     settings: RunSettings,
@@ -51,6 +66,7 @@ def run_id(
         settings.mode,
         seed,
         version.split("@", 1)[0],
+        run_impl(loaded, settings),
     ]
     if extra:  # absent for plain tracking runs, so their ids stay what they were
         parts.append(extra)
@@ -77,6 +93,7 @@ def base_row(
         solver=settings.solver,
         tier=settings.tier,
         mode=settings.mode,
+        impl=run_impl(loaded, settings),
         seed=0,
         code_version=version,
         kind=kind,

@@ -12,12 +12,14 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
+from wbcbench import _native
 from wbcbench.dynamics.state import RobotState
+from wbcbench.errors import ControllerError
 from wbcbench.qp import Problem, Solution, make_solver
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.schema import Scenario
@@ -29,6 +31,28 @@ class ControllerConfig(BaseModel):
     """Base of every controller's settings: unknown keys are errors."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+    impl: Literal["python"] | None = Field(
+        None, description="implementation: python (this controller has no native tick yet)"
+    )
+
+
+class NativeConfig(ControllerConfig):
+    """Settings of a controller that also has a native tick."""
+
+    impl: Literal["native", "python"] | None = Field(  # type: ignore[assignment]
+        None,
+        description="native (the C++ tick) or python (the reference); by default native "
+        "where the module is built",
+    )
+
+
+def resolve_impl(cls: type[Controller], requested: str | None) -> str:
+    """The implementation a controller runs: the requested one, else native where the
+    controller has a native tick and the module is built, else python."""
+    if requested is not None:
+        return requested
+    return "native" if cls.has_native and _native.BUILT else "python"
 
 
 @dataclass
@@ -168,6 +192,8 @@ class Controller(ABC):
     kind: ClassVar[str] = "torque"
     #: backends the formulation is validated with (the registry sweep requires them to succeed)
     reference_solvers: ClassVar[tuple[str, ...]] = ("proxqp", "daqp")
+    #: the controller has a native tick (``impl: native``; its Config is a NativeConfig)
+    has_native: ClassVar[bool] = False
 
     @classmethod
     def applies_to(cls, scenario: Scenario) -> str:
@@ -184,6 +210,13 @@ class Controller(ABC):
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         self.ctx = ctx
         self.config = config if config is not None else self.Config()
+        #: ``native`` or ``python``: which implementation this instance runs
+        self.impl = resolve_impl(type(self), self.config.impl)
+        if self.impl == "native" and not _native.BUILT:
+            raise ControllerError(
+                f"{self.name}: impl: native needs the native module, which is {_native.REASON}; "
+                "valid choices here: python"
+            )
 
     def start(self, state: RobotState) -> None:
         """Called once with the initial state: fixes the tasks' initial values."""

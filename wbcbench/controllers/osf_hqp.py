@@ -23,9 +23,12 @@ operational-space parameters (see :mod:`wbcbench.sim.params`).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from pydantic import Field
 
+from wbcbench.controllers import native
 from wbcbench.controllers.base import ControllerConfig, ControllerContext, ControlOutput, StageTimer
 from wbcbench.controllers.to_osf import OsfBaseConfig, OsfControllerBase, wrench_selection
 from wbcbench.dynamics.state import RobotState
@@ -61,8 +64,63 @@ class OsfHqp(OsfControllerBase):
         self.final_solver = ctx.new_solver()
         Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
         self.WtW = Wc.T @ Wc
+        self.problems: list[Problem] = []  # the native QPs' views, made at start()
+
+    def native_class(self) -> Any:
+        return native.core().OsfHqpTick
+
+    def native_settings(self) -> Any:
+        s = native.core().OsfHqpSettings()
+        s.regularization = self.config.regularization
+        s.carry_tolerance = self.config.carry_tolerance
+        s.WtW = np.asarray(self.WtW, dtype=float).reshape(self.nc, self.nc)
+        return s
+
+    def make_native(self) -> None:
+        super().make_native()
+        tick = self.native_tick
+        names = [f"T{i + 1}" for i in range(len(self.levels))] + ["wrench"]
+        self.problems = [native.qp_view(tick.qp(i), names[i]) for i in range(tick.n_qps)]
+
+    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
+        """The same cascade on the native tick: the level QPs, then the wrench QP."""
+        if self.native_tick is None:
+            self.make_native()
+        timer = native.NativeTimer()
+        tick = self.native_tick
+        L = len(self.levels)
+        solvers = [*self.solvers, self.final_solver]
+        message: str | None = None
+        used: list[Problem] = []
+        ok = tick.build(state.q, state.v, t)
+        if not ok:
+            message = tick.message or "the QP holds a NaN (state or references not finite)"
+        for i, problem in enumerate(self.problems):
+            if message is not None:
+                break
+            level = f"T{i + 1}" if i < L else "wrench"
+            used.append(problem)
+            sol = solvers[min(i, L)].solve(problem, lean=True)
+            timer.add_solution(sol, level)
+            if not sol.success or sol.x is None:
+                where = f"level {level}" if i < L else "wrench level"
+                message = f"{where}: {sol.solver}: {sol.status.value}: {sol.message}"
+            elif i < L:
+                if not tick.level(i, sol.x):
+                    message = "the QP holds a NaN (state or references not finite)"
+            else:
+                tick.finish(sol.x)
+        if message is None and len(self.problems) == L:
+            tick.finish(np.zeros(0))
+        timer.stop()
+        diagnostics = {}
+        if message is None:
+            diagnostics = {f"slack.T{i + 1}": float(w) for i, w in enumerate(tick.slack_norms)}
+        return self.native_output(state, timer, used, message, diagnostics)
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
+        if self.impl == "native":
+            return self._step_native(state, t)
         timer = StageTimer(state)
         cfg = self.config
         terms, per_level, refs, read = self.prepare(state, t)

@@ -17,25 +17,27 @@ f is the reaction on the robot (see :mod:`wbcbench.dynamics.state`).
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field
 
+from wbcbench.controllers import native
 from wbcbench.controllers.base import (
     Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
+    NativeConfig,
     StageTimer,
 )
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp import Problem
 from wbcbench.tasks.contacts import stack_wrench_constraints
-from wbcbench.tasks.tasks import TaskTerm
+from wbcbench.tasks.tasks import Task, TaskTerm
 
 
-class QpWbcConfig(ControllerConfig):
+class QpWbcConfig(NativeConfig):
     """Settings of the weighted QP-WBC."""
 
     variables: Literal["full", "eliminated"] = Field(
@@ -52,9 +54,14 @@ class QpWbcConfig(ControllerConfig):
 
 def task_weight(term: TaskTerm, weights: list[float]) -> float:
     """A task's explicit weight, else the weight of its priority (last weight repeats)."""
-    if term.task.weight is not None:
-        return term.task.weight
-    idx = min(max(term.task.priority, 1), len(weights)) - 1
+    return task_weight_of(term.task, weights)
+
+
+def task_weight_of(task: Task, weights: list[float]) -> float:
+    """:func:`task_weight` of a task."""
+    if task.weight is not None:
+        return task.weight
+    idx = min(max(task.priority, 1), len(weights)) - 1
     return weights[idx]
 
 
@@ -78,6 +85,7 @@ class QpWbc(Controller):
     summary = "weighted QP-WBC (soft hierarchy), variables (q̈, Γ, f) or (q̈, f)"
     Config = QpWbcConfig
     config: QpWbcConfig
+    has_native = True
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -86,8 +94,45 @@ class QpWbc(Controller):
         self.frames = frames
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
         self.nc = 6 * len(frames)
+        self.tick: Any = None  # the native tick, made at start() once the tasks are started
+        self.problem: Problem | None = None
+
+    def start(self, state: RobotState) -> None:
+        super().start(state)
+        if self.impl == "native":
+            self.make_native()
+
+    def make_native(self) -> None:
+        """The native tick, from the started tasks (made by start(), or by the first step of a
+        controller whose tasks another one started)."""
+        tasks = self.ctx.tasks
+        frames = native.task_frames(tasks)
+        tick = native.core().QpWbcTick(
+            self.ctx.robot.pin_model.saveToString(), frames, list(self.frames)
+        )
+        for task in tasks:
+            tick.tasks.add(native.task_spec(task, frames))
+        cfg = self.config
+        s = native.core().QpWbcSettings()
+        s.eliminated = cfg.variables == "eliminated"
+        s.row_weights = np.concatenate(
+            [np.full(task.dim, task_weight_of(task, cfg.weights)) for task in tasks]
+            or [np.zeros(0)]
+        )
+        s.acceleration_weight = cfg.acceleration_weight
+        s.torque_weight = cfg.torque_weight
+        s.wrench_weight = cfg.wrench_weight
+        s.tau_max = np.asarray(self.ctx.tau_max, dtype=float)
+        s.Cw = np.asarray(self.Cw, dtype=float).reshape(-1, self.nc)
+        s.lw = np.asarray(self.lw, dtype=float)
+        s.uw = np.asarray(self.uw, dtype=float)
+        tick.configure(s)
+        self.tick = tick
+        self.problem = native.qp_view(tick.qp, "qp_wbc")
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
+        if self.impl == "native":
+            return self._step_native(state, t)
         timer = StageTimer(state)
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc
@@ -179,4 +224,48 @@ class QpWbc(Controller):
             timings=timer.finish(),
             iterations=timer.iterations,
             problems=[problem] if self.ctx.keep_problems else [],
+        )
+
+    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
+        """The same step on the native tick: build, solve through the lean path, finish."""
+        if self.tick is None:
+            self.make_native()
+        timer = native.NativeTimer()
+        tick, problem = self.tick, self.problem
+        assert tick is not None and problem is not None
+        n, k, nc = state.n, state.k, self.nc
+        if not tick.build(state.q, state.v, t):
+            message = "the QP holds a NaN (state or references not finite)"
+            sol = None
+        else:
+            sol = self.solver.solve(problem, lean=True)
+            timer.add_solution(sol)
+            message = "" if sol.success else f"{sol.solver}: {sol.status.value}: {sol.message}"
+        ok = sol is not None and sol.success and sol.x is not None
+        if ok:
+            assert sol is not None and sol.x is not None
+            tick.finish(sol.x)
+        timings = timer.finish(tick)
+        terms = native.task_terms(self.ctx.tasks, tick.tasks)
+        keep = [native.frozen(problem)] if self.ctx.keep_problems else []
+        if not ok:
+            return ControlOutput(
+                tau=np.zeros(k),
+                qdd=np.zeros(n),
+                wrench=np.zeros(nc),
+                terms=terms,
+                timings=timings,
+                ok=False,
+                message=message,
+                iterations=timer.iterations,
+                problems=keep,
+            )
+        return ControlOutput(
+            tau=tick.tau.copy(),
+            qdd=tick.qdd.copy(),
+            wrench=tick.wrench.copy(),
+            terms=terms,
+            timings=timings,
+            iterations=timer.iterations,
+            problems=keep,
         )

@@ -25,19 +25,21 @@ async``). This module also holds what both OSF controllers share (:class:`OsfCon
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field, field_validator
 
+from wbcbench.controllers import native
 from wbcbench.controllers.base import (
     Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
+    NativeConfig,
     StageTimer,
 )
-from wbcbench.controllers.qp_wbc import task_weight
+from wbcbench.controllers.qp_wbc import task_weight, task_weight_of
 from wbcbench.dynamics.osf import OsfModel, OsfParams, group_levels, level_kinds
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
@@ -48,7 +50,7 @@ from wbcbench.tasks.contacts import stack_wrench_constraints
 from wbcbench.tasks.tasks import TaskTerm
 
 
-class OsfBaseConfig(ControllerConfig):
+class OsfBaseConfig(NativeConfig):
     """Settings both OSF controllers share."""
 
     wrench_weights: list[float] = Field(
@@ -90,10 +92,12 @@ class OsfBaseConfig(ControllerConfig):
 
 
 class OsfControllerBase(Controller):
-    """Shared plumbing: levels, the parameter server, references, limits, diagnostics."""
+    """Shared plumbing: levels, the parameter server, references, limits, diagnostics, and the
+    native tick's set-up (``impl: native``)."""
 
     config: OsfBaseConfig
     affine: bool = False
+    has_native = True
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -125,6 +129,121 @@ class OsfControllerBase(Controller):
             for tasks in self.levels
         ]
         self.tick = 0
+        if self.impl == "native" and self.server.mode.kind == "async":
+            if cfg.impl == "native":
+                raise ControllerError(
+                    f"{self.name}: params: async has no native form; valid choices with "
+                    "impl: native: inline, periodic:N"
+                )
+            self.impl = "python"
+        #: the tasks in level order (the native tick stacks them so), and the native tick
+        self.level_tasks = [task for tasks in self.levels for task in tasks]
+        self.native_tick: Any = None
+
+    # -- the native tick ----------------------------------------------------------------------
+
+    def native_settings(self) -> Any:
+        """The native settings object of this controller (the subclass's own fields set)."""
+        raise NotImplementedError
+
+    def native_class(self) -> Any:
+        raise NotImplementedError
+
+    def start(self, state: RobotState) -> None:
+        super().start(state)
+        if self.impl == "native":
+            self.make_native()
+
+    def make_native(self) -> None:
+        """The native tick, from the started tasks (made by start(), or by the first step of a
+        controller whose tasks another one started)."""
+        cfg = self.config
+        frames = native.task_frames(self.level_tasks)
+        tick = self.native_class()(
+            self.ctx.robot.pin_model.saveToString(), frames, list(self.frames)
+        )
+        for task in self.level_tasks:
+            tick.tasks.add(native.task_spec(task, frames))
+        s = self.native_settings()
+        s.level_dims = [sum(t.dim for t in tasks) for tasks in self.levels]
+        s.force_level = [kind == "force" for kind in self.kinds]
+        s.inverse = cfg.inverse
+        s.exact = cfg.coupling == "exact"
+        s.rcond = cfg.rcond
+        s.period = self.server.mode.period
+        s.tau_max = np.asarray(self.ctx.tau_max, dtype=float)
+        s.Cw = np.asarray(self.Cw, dtype=float).reshape(-1, self.nc)
+        s.lw = np.asarray(self.lw, dtype=float)
+        s.uw = np.asarray(self.uw, dtype=float)
+        s.acc_bound = np.concatenate(self.acc_bound or [np.zeros(0)])
+        tick.configure(s)
+        self.native_tick = tick
+
+    def native_terms(self) -> list[TaskTerm]:
+        """The native tick's task terms, in the order of the scenario's tasks."""
+        by_task = {
+            id(term.task): term
+            for term in native.task_terms(self.level_tasks, self.native_tick.tasks)
+        }
+        return [by_task[id(task)] for task in self.ctx.tasks]
+
+    def native_output(
+        self,
+        state: RobotState,
+        timer: native.NativeTimer,
+        problems: list[Problem],
+        message: str | None,
+        diagnostics: dict[str, float],
+    ) -> ControlOutput:
+        """The output of a native tick (``message`` set: a failed one); diagnostics are computed
+        after the timed region."""
+        tick = self.native_tick
+        timings = timer.finish(tick)
+        terms = self.native_terms()
+        keep = [native.frozen(p) for p in problems] if self.ctx.keep_problems else []
+        diagnostics = {
+            "params_staleness": float(tick.staleness),
+            "params_compute_time": tick.params_compute_time,
+            **diagnostics,
+        }
+        k, n = self.ctx.robot.k, self.ctx.robot.nv
+        if message is not None:
+            return ControlOutput(
+                tau=np.zeros(k),
+                qdd=np.zeros(n),
+                wrench=np.zeros(self.nc),
+                terms=terms,
+                timings=timings,
+                ok=False,
+                message=message,
+                iterations=timer.iterations,
+                diagnostics=diagnostics,
+                problems=keep,
+            )
+        tau, wrench = tick.tau.copy(), tick.wrench.copy()
+        if self.config.consistency:
+            by_task = {id(term.task): term for term in terms}
+            per_level = [[by_task[id(task)] for task in tasks] for tasks in self.levels]
+            jac = [
+                (np.vstack([t.J for t in lv]), np.concatenate([t.drift for t in lv]))
+                for lv in per_level
+            ]
+            partial = [row.copy() for row in tick.partial]
+            extra = tau - partial[-1] if partial else tau
+            params = self.model.params(state, jac)
+            diagnostics.update(
+                self.consistency_diagnostics(state, params, per_level, partial, extra, wrench)
+            )
+        return ControlOutput(
+            tau=tau,
+            qdd=tick.qdd.copy(),
+            wrench=wrench,
+            terms=terms,
+            timings=timings,
+            iterations=timer.iterations,
+            diagnostics=diagnostics,
+            problems=keep,
+        )
 
     def close(self) -> None:
         """Stop the parameter worker (``params: async``)."""
@@ -288,9 +407,58 @@ class ToOsf(OsfControllerBase):
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
         self.solver = ctx.new_solver()
+        self.problem: Problem | None = None  # the native QP's view, made at start()
         self.Sf = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
 
+    def native_class(self) -> Any:
+        return native.core().ToOsfTick
+
+    def native_settings(self) -> Any:
+        cfg = self.config
+        s = native.core().ToOsfSettings()
+        weights = cfg.weights[:1] if cfg.weighting == "identical" else cfg.weights
+        s.row_weights = np.concatenate(
+            [np.full(t.dim, task_weight_of(t, weights)) for t in self.level_tasks] or [np.zeros(0)]
+        )
+        s.wrench_weight = cfg.wrench_weight
+        s.wrench_total = cfg.wrench_cost == "total"
+        s.regularization = cfg.regularization
+        s.Sf = np.asarray(self.Sf, dtype=float).reshape(-1, self.nc)
+        return s
+
+    def make_native(self) -> None:
+        super().make_native()
+        self.problem = native.qp_view(self.native_tick.qp, "to_osf")
+
+    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
+        """The same step on the native tick: build, solve through the lean path, finish."""
+        if self.native_tick is None:
+            self.make_native()
+        timer = native.NativeTimer()
+        tick, problem = self.native_tick, self.problem
+        assert problem is not None
+        message: str | None = "the QP holds a NaN (state or references not finite)"
+        if tick.build(state.q, state.v, t):
+            sol = self.solver.solve(problem, lean=True)
+            timer.add_solution(sol)
+            if sol.success and sol.x is not None:
+                tick.finish(sol.x)
+                message = None
+            else:
+                message = f"{sol.solver}: {sol.status.value}: {sol.message}"
+        timer.stop()
+        diagnostics: dict[str, float] = {}
+        if message is None:
+            amend = tick.rho - tick.tasks.acc_ref
+            tasks = tick.tasks
+            for i, task in enumerate(self.level_tasks):
+                rows = slice(tasks.offset(i), tasks.offset(i) + tasks.dim(i))
+                diagnostics[f"amend.{task.name}"] = float(np.linalg.norm(amend[rows]))
+        return self.native_output(state, timer, [problem], message, diagnostics)
+
     def step(self, state: RobotState, t: float) -> ControlOutput:
+        if self.impl == "native":
+            return self._step_native(state, t)
         timer = StageTimer(state)
         cfg = self.config
         terms, per_level, refs, read = self.prepare(state, t)

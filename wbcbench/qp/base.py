@@ -120,7 +120,11 @@ class QPSolver(ABC):
         self._last = {}
 
     def solve(
-        self, problem: Problem, x0: Array | None = None, raise_on_failure: bool = False
+        self,
+        problem: Problem,
+        x0: Array | None = None,
+        raise_on_failure: bool = False,
+        lean: bool = False,
     ) -> Solution:
         """Solve ``problem``.
 
@@ -131,6 +135,10 @@ class QPSolver(ABC):
                 solution.
             raise_on_failure: raise :class:`SolverError` (carrying the problem) instead of
                 returning a non-``solved`` Solution.
+            lean: the timed path of native ticks: no validation of the problem (its builder
+                sized the buffers once and checked them finite) and no objective computed when
+                the solver reports none. The independent check of the answer runs after the
+                tick, as on every path.
 
         Returns:
             The Solution. A backend exception is returned as status ``failed`` with the
@@ -138,7 +146,8 @@ class QPSolver(ABC):
         """
         t_call = time.perf_counter()
         try:
-            problem.validate()
+            if not lean:
+                problem.validate()
             if self.mode == "hot":
                 sol = self._solve_hot(problem, x0)
             else:
@@ -151,7 +160,7 @@ class QPSolver(ABC):
         sol.solver = self.name
         sol.mode = self.mode
         sol.tier = self.tier
-        if sol.x is not None and sol.objective != sol.objective:  # NaN: not reported
+        if not lean and sol.x is not None and sol.objective != sol.objective:  # not reported
             sol.objective = problem.objective(sol.x)
         if sol.internal_time is not None and not sol.internal_time_covers:
             sol.internal_time_covers = self.internal_time_covers

@@ -55,6 +55,10 @@ QPSOLVERS_NAMES: tuple[str, ...] = (
     "quadprog",
 )
 
+#: wrapped backends whose time / iteration caps are the library's own settings, which qpsolvers
+#: passes through (the others' caps are wbcbench's own code and do not reach the library)
+CAPS_PASS_THROUGH: tuple[str, ...] = ("clarabel", "highs", "osqp")
+
 UNKNOWN_HINT = "wbcbench.qp.all_solvers() lists every backend with its availability and version"
 
 
@@ -76,7 +80,10 @@ def _load(name: str) -> type[QPSolver] | None:
         if inner not in qpsolvers.available_solvers:
             return None
         native = _load(inner) if inner in BACKENDS else None
-        return make_wrapper(inner, native.tier_settings if native else lambda tier: {})
+        caps = native.tier_caps if native and inner in CAPS_PASS_THROUGH else None
+        return make_wrapper(
+            inner, native.tier_settings if native else lambda tier: {}, caps or (lambda tier: {})
+        )
     entry = BACKENDS[name]
     try:
         module = importlib.import_module(entry.module)

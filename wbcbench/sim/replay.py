@@ -80,9 +80,13 @@ class ReplayTimings:
     message: str = ""  # the first failure's message
 
     def median_us(self, stage: str, warmup: int = 0) -> float:
+        return self.quantile_us(stage, 0.5, warmup)
+
+    def quantile_us(self, stage: str, q: float, warmup: int = 0) -> float:
+        """The ``q`` quantile of a stage [µs] over the finite ticks after ``warmup``."""
         x = self.stages[stage][warmup:]
         x = x[np.isfinite(x)]
-        return float(np.median(x) * 1e6) if x.size else float("nan")
+        return float(np.quantile(x, q) * 1e6) if x.size else float("nan")
 
 
 def replay(

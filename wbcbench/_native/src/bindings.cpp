@@ -7,4 +7,6 @@ NB_MODULE(_core, m) {
   m.attr("compiler") = WBCBENCH_COMPILER;
   m.attr("cxx_flags") = WBCBENCH_CXX_FLAGS;
   wbcbench::bind_dynamics(m);
+  wbcbench::bind_controllers(m);
+  wbcbench::bind_osf(m);
 }

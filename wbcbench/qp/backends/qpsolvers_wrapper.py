@@ -38,12 +38,18 @@ _SPARSE = frozenset({"clarabel", "highs", "osqp"})
 _ACCEPTS_INITVALS = frozenset({"osqp", "proxqp"})
 
 
-def make_wrapper(inner: str, tier_settings: Callable[[str], dict[str, Any]]) -> type[QPSolver]:
+def make_wrapper(
+    inner: str,
+    tier_settings: Callable[[str], dict[str, Any]],
+    tier_caps: Callable[[str], dict[str, Any]] = lambda tier: {},
+) -> type[QPSolver]:
     """A :class:`QPSolver` subclass solving through ``qpsolvers.solve_problem(solver=inner)``.
 
     Args:
         inner: qpsolvers' name of the solver.
         tier_settings: the native backend's tier translation (empty dicts if none).
+        tier_caps: the native backend's time / iteration caps, where they are the library's own
+            settings (empty dicts otherwise).
     """
 
     class QpsolversSolver(QPSolver):
@@ -55,6 +61,10 @@ def make_wrapper(inner: str, tier_settings: Callable[[str], dict[str, Any]]) -> 
         @staticmethod
         def tier_settings(tier: str) -> dict[str, Any]:
             return tier_settings(tier)
+
+        @staticmethod
+        def tier_caps(tier: str) -> dict[str, Any]:
+            return tier_caps(tier)
 
         def _solve_fresh(self, problem: Problem, guess: Guess | None, keep: bool) -> Solution:
             t0 = time.perf_counter()

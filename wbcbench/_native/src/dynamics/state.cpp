@@ -2,6 +2,7 @@
 #include "dynamics/state.hpp"
 
 #include <chrono>
+#include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/center-of-mass.hpp>
 #include <pinocchio/algorithm/centroidal.hpp>
 #include <pinocchio/algorithm/compute-all-terms.hpp>
@@ -19,7 +20,11 @@ struct RobotDynamics::Impl {
   pin::Model model;
   std::unique_ptr<pin::Data> data;
   std::vector<pin::FrameIndex> task_ids, contact_ids;
-  Vector a0;
+  // q, v, a as Pinocchio's own vector type, and a 6×n Jacobian: with these argument types the
+  // calls below use libpinocchio_default's precompiled algorithms (other types would
+  // instantiate the templates here, unoptimised for the model at hand)
+  Vector q, v, a0;
+  pin::Data::Matrix6x jacobian;
 };
 
 static pin::FrameIndex frame_index(const pin::Model& model, const std::string& name) {
@@ -39,12 +44,14 @@ RobotDynamics::RobotDynamics(const std::string& model,
   const int nv = m.nv;
   const int nc = 6 * static_cast<int>(contact_frames.size());
   impl_->a0 = Vector::Zero(nv);
+  impl_->q = Vector::Zero(m.nq);
+  impl_->v = Vector::Zero(nv);
+  impl_->jacobian = pin::Data::Matrix6x::Zero(6, nv);
   M_.setZero(nv, nv);
   Minv_.setZero(nv, nv);
   Jcom_.setZero(3, nv);
   Ag_.setZero(6, nv);
   J_contact_.setZero(nc, nv);
-  jac_buffer_.setZero(6, nv);
   h_.setZero(nv);
   g_.setZero(nv);
   com_.setZero(3);
@@ -54,7 +61,6 @@ RobotDynamics::RobotDynamics(const std::string& model,
   dJv_task_.assign(task_frames.size(), Vector::Zero(6));
   p_task_.assign(task_frames.size(), Vector::Zero(3));
   R_task_.assign(task_frames.size(), Matrix::Identity(3, 3));
-  llt_ = Eigen::LLT<Matrix>(nv);
 }
 
 RobotDynamics::~RobotDynamics() = default;
@@ -67,12 +73,17 @@ std::vector<std::string> RobotDynamics::joint_names() const {
   return std::vector<std::string>(impl_->model.names.begin(), impl_->model.names.end());
 }
 
-double RobotDynamics::update(const Eigen::Ref<const Vector>& q,
-                             const Eigen::Ref<const Vector>& v) {
+double RobotDynamics::update(const Eigen::Ref<const Vector>& q_in,
+                             const Eigen::Ref<const Vector>& v_in) {
   const auto t0 = std::chrono::steady_clock::now();
   const pin::Model& m = impl_->model;
   pin::Data& d = *impl_->data;
-  if (q.size() != m.nq || v.size() != m.nv) throw std::invalid_argument("q or v of wrong size");
+  if (q_in.size() != m.nq || v_in.size() != m.nv)
+    throw std::invalid_argument("q or v of wrong size");
+  impl_->q = q_in;
+  impl_->v = v_in;
+  const Vector& q = impl_->q;
+  const Vector& v = impl_->v;
   // RobotState._terms: kinematics, M, nonlinear effects, gravity, Jacobians, CoM, CMM
   pin::computeAllTerms(m, d, q, v);
   pin::updateFramePlacements(m, d);
@@ -81,30 +92,38 @@ double RobotDynamics::update(const Eigen::Ref<const Vector>& q,
 
   M_.triangularView<Eigen::Upper>() = d.M.triangularView<Eigen::Upper>();
   M_.triangularView<Eigen::StrictlyLower>() = M_.transpose().triangularView<Eigen::StrictlyLower>();
-  llt_.compute(M_);
-  Minv_.setIdentity();
-  llt_.solveInPlace(Minv_);
+  if (with_inverse_) {  // M⁻¹ by Pinocchio's O(n²) pass, as RobotState.Minv
+    pin::computeMinverse(m, d, q);
+    Minv_.triangularView<Eigen::Upper>() = d.Minv.triangularView<Eigen::Upper>();
+    Minv_.triangularView<Eigen::StrictlyLower>() =
+        Minv_.transpose().triangularView<Eigen::StrictlyLower>();
+  }
+ 
   h_ = d.nle;
   g_ = d.g;
   com_ = d.com[0];
   Jcom_ = d.Jcom;
   acom_ = d.acom[0];
   Ag_ = d.Ag;
+ 
   for (size_t i = 0; i < impl_->task_ids.size(); ++i) {
     const auto fid = impl_->task_ids[i];
-    J_task_[i].setZero();
-    pin::getFrameJacobian(m, d, fid, pin::LOCAL_WORLD_ALIGNED, J_task_[i]);
+    impl_->jacobian.setZero();
+    pin::getFrameJacobian(m, d, fid, pin::LOCAL_WORLD_ALIGNED, impl_->jacobian);
+    J_task_[i] = impl_->jacobian;
     dJv_task_[i] = pin::getFrameClassicalAcceleration(m, d, fid, pin::LOCAL_WORLD_ALIGNED).toVector();
     p_task_[i] = d.oMf[fid].translation();
     R_task_[i] = d.oMf[fid].rotation();
   }
+ 
   for (size_t i = 0; i < impl_->contact_ids.size(); ++i) {
     const auto fid = impl_->contact_ids[i];
-    jac_buffer_.setZero();
-    pin::getFrameJacobian(m, d, fid, pin::LOCAL, jac_buffer_);
-    J_contact_.middleRows(6 * i, 6) = jac_buffer_;
+    impl_->jacobian.setZero();
+    pin::getFrameJacobian(m, d, fid, pin::LOCAL, impl_->jacobian);
+    J_contact_.middleRows(6 * i, 6) = impl_->jacobian;
     dJv_contact_.segment(6 * i, 6) = pin::getFrameAcceleration(m, d, fid, pin::LOCAL).toVector();
   }
+ 
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 

@@ -15,7 +15,7 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 using Matrix = Eigen::MatrixXd;
 using Vector = Eigen::VectorXd;
 
-// Mirrors RobotState: M, its Cholesky factor, h, g, the CoM, its Jacobian and drift, the
+// Mirrors RobotState: M, M⁻¹, h, g, the CoM, its Jacobian and drift, the
 // centroidal momentum matrix and the Jacobians and drifts of the frames named at set-up.
 // Buffers are sized at construction; update() allocates nothing.
 class RobotDynamics {
@@ -36,7 +36,7 @@ class RobotDynamics {
 
   // The quantities of the last update(); shapes as in RobotState.
   const Matrix& M() const { return M_; }             // (nv, nv), both triangles
-  const Matrix& Minv() const { return Minv_; }       // (nv, nv), by the Cholesky factor
+  const Matrix& Minv() const { return Minv_; }       // (nv, nv), by Pinocchio
   const Vector& h() const { return h_; }             // (nv,)
   const Vector& g() const { return g_; }             // (nv,)
   const Vector& com() const { return com_; }         // (3,)
@@ -49,17 +49,19 @@ class RobotDynamics {
   const Matrix& task_rotation(int i) const { return R_task_.at(i); }  // (3, 3) world
   const Matrix& contact_jacobian() const { return J_contact_; }      // (6c, nv)
   const Vector& contact_drift() const { return dJv_contact_; }       // (6c,)
-  const Eigen::LLT<Matrix>& M_factor() const { return llt_; }
+  // whether update() also computes M⁻¹ (on by default; controllers that never read it turn
+  // it off, as RobotState computes it only when asked)
+  void set_inverse(bool on) { with_inverse_ = on; }
 
  private:
   struct Impl;  // Pinocchio's model and data: only state.cpp includes Pinocchio
   std::unique_ptr<Impl> impl_;
-  Matrix M_, Minv_, Jcom_, Ag_, J_contact_, jac_buffer_;
+  Matrix M_, Minv_, Jcom_, Ag_, J_contact_;
   Vector h_, g_, com_, acom_, dJv_contact_;
   std::vector<Matrix> J_task_;
   std::vector<Vector> dJv_task_, p_task_;
   std::vector<Matrix> R_task_;
-  Eigen::LLT<Matrix> llt_;
+  bool with_inverse_ = true;
 };
 
 }  // namespace wbcbench

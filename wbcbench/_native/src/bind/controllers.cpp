@@ -1,0 +1,123 @@
+#include <nanobind/eigen/dense.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include "bind/bind.hpp"
+#include "controllers/qp_wbc.hpp"
+#include "controllers/tick.hpp"
+#include "tasks/tasks.hpp"
+#include "tasks/trajectory.hpp"
+
+namespace wbcbench {
+
+using ConstVec = Eigen::Ref<const Vector>;
+
+void bind_controllers(nb::module_& m) {
+  nb::class_<Trajectory>(m, "Trajectory", "A task reference, sampled every tick.")
+      .def_static("constant", &Trajectory::constant, nb::arg("value"))
+      .def_static("sinusoid", &Trajectory::sinusoid, nb::arg("amplitude"), nb::arg("frequency"),
+                  nb::arg("t0"), nb::arg("phase"))
+      .def_static("cubic", &Trajectory::cubic, nb::arg("breaks"), nb::arg("coef"),
+                  nb::arg("first"), nb::arg("last"))
+      .def_static(
+          "minimum_jerk",
+          [](const std::vector<double>& times, const Matrix& values) {
+            return Trajectory::waypoints(Trajectory::Kind::kMinimumJerk, times, values);
+          },
+          nb::arg("times"), nb::arg("values"))
+      .def_static(
+          "linear",
+          [](const std::vector<double>& times, const Matrix& values) {
+            return Trajectory::waypoints(Trajectory::Kind::kLinear, times, values);
+          },
+          nb::arg("times"), nb::arg("values"))
+      .def_prop_ro("dim", &Trajectory::dim)
+      .def(
+          "sample",
+          [](const Trajectory& traj, double t) {
+            Vector x(traj.dim()), xd(traj.dim()), xdd(traj.dim());
+            traj.sample(t, x, xd, xdd);
+            return std::make_tuple(x, xd, xdd);
+          },
+          nb::arg("t"), "(x, ẋ, ẍ) at t (copies; for tests)");
+
+  nb::enum_<TaskType>(m, "TaskType")
+      .value("com", TaskType::kCom)
+      .value("frame_position", TaskType::kFramePosition)
+      .value("frame_orientation", TaskType::kFrameOrientation)
+      .value("frame_pose", TaskType::kFramePose)
+      .value("joint_posture", TaskType::kPosture)
+      .value("joint_damping", TaskType::kDamping);
+
+  nb::class_<TaskSpec>(m, "TaskSpec", "One task as handed over once it is started.")
+      .def(nb::init<>())
+      .def_rw("type", &TaskSpec::type)
+      .def_rw("frame", &TaskSpec::frame)
+      .def_rw("rows", &TaskSpec::rows)
+      .def_rw("kp", &TaskSpec::kp)
+      .def_rw("kv", &TaskSpec::kv)
+      .def_rw("absolute", &TaskSpec::absolute)
+      .def_rw("x0", &TaskSpec::x0)
+      .def_rw("R0", &TaskSpec::R0)
+      .def_rw("reference", &TaskSpec::reference);
+
+  nb::class_<TaskSet>(m, "TaskSet", "The tasks of a controller, stacked.")
+      .def("add", &TaskSet::add, nb::arg("spec"))
+      .def("evaluate", &TaskSet::evaluate, nb::arg("dynamics"), nb::arg("q").noconvert(),
+           nb::arg("v").noconvert(), nb::arg("t"))
+      .def_prop_ro("size", &TaskSet::size)
+      .def_prop_ro("rows", &TaskSet::rows)
+      .def("offset", &TaskSet::offset, nb::arg("i"))
+      .def("dim", &TaskSet::dim, nb::arg("i"))
+      .def_prop_ro("J", &TaskSet::J, kView)
+      .def_prop_ro("drift", &TaskSet::drift, kView)
+      .def_prop_ro("acc_ref", &TaskSet::acc_ref, kView)
+      .def_prop_ro("error", &TaskSet::error, kView)
+      .def_prop_ro("error_vel", &TaskSet::error_vel, kView);
+
+  nb::class_<QpBuffers>(m, "QpBuffers", "One QP's buffers, refilled in place every tick.")
+      .def_prop_ro("H", [](QpBuffers& b) -> RowMatrix& { return b.H; }, kView)
+      .def_prop_ro("g", [](QpBuffers& b) -> Vector& { return b.g; }, kView)
+      .def_prop_ro("A", [](QpBuffers& b) -> RowMatrix& { return b.A; }, kView)
+      .def_prop_ro("b", [](QpBuffers& b) -> Vector& { return b.b; }, kView)
+      .def_prop_ro("C", [](QpBuffers& b) -> RowMatrix& { return b.C; }, kView)
+      .def_prop_ro("l", [](QpBuffers& b) -> Vector& { return b.l; }, kView)
+      .def_prop_ro("u", [](QpBuffers& b) -> Vector& { return b.u; }, kView)
+      .def_prop_ro("lb", [](QpBuffers& b) -> Vector& { return b.lb; }, kView)
+      .def_prop_ro("ub", [](QpBuffers& b) -> Vector& { return b.ub; }, kView)
+      .def_ro("has_box", &QpBuffers::has_box);
+
+  nb::class_<Tick>(m, "Tick", "Dynamics, tasks and stage times of a native controller.")
+      .def_prop_ro("dynamics", &Tick::dynamics, kView)
+      .def_prop_ro("tasks", &Tick::tasks, kView)
+      .def_prop_ro("dynamics_time", [](const Tick& t) { return t.times().dynamics; })
+      .def_prop_ro("build_time", [](const Tick& t) { return t.times().build; });
+
+  nb::class_<QpWbcSettings>(m, "QpWbcSettings")
+      .def(nb::init<>())
+      .def_rw("eliminated", &QpWbcSettings::eliminated)
+      .def_rw("row_weights", &QpWbcSettings::row_weights)
+      .def_rw("acceleration_weight", &QpWbcSettings::acceleration_weight)
+      .def_rw("torque_weight", &QpWbcSettings::torque_weight)
+      .def_rw("wrench_weight", &QpWbcSettings::wrench_weight)
+      .def_rw("tau_max", &QpWbcSettings::tau_max)
+      .def_rw("Cw", &QpWbcSettings::Cw)
+      .def_rw("lw", &QpWbcSettings::lw)
+      .def_rw("uw", &QpWbcSettings::uw);
+
+  nb::class_<QpWbcTick, Tick>(m, "QpWbcTick", "The weighted QP-WBC's tick.")
+      .def(nb::init<const std::string&, const std::vector<std::string>&,
+                    const std::vector<std::string>&>(),
+           nb::arg("model"), nb::arg("task_frames"), nb::arg("contact_frames"))
+      .def("configure", &QpWbcTick::configure, nb::arg("settings"))
+      .def("build", &QpWbcTick::build, nb::arg("q").noconvert(), nb::arg("v").noconvert(),
+           nb::arg("t"), nb::call_guard<nb::gil_scoped_release>())
+      .def("finish", &QpWbcTick::finish, nb::arg("x").noconvert(),
+           nb::call_guard<nb::gil_scoped_release>())
+      .def_prop_ro("qp", &QpWbcTick::qp, kView)
+      .def_prop_ro("tau", &QpWbcTick::tau, kView)
+      .def_prop_ro("qdd", &QpWbcTick::qdd, kView)
+      .def_prop_ro("wrench", &QpWbcTick::wrench, kView);
+}
+
+}  // namespace wbcbench

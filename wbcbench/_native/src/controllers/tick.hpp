@@ -1,0 +1,63 @@
+// What every native controller tick shares: the per-tick dynamics, the tasks, the QP buffers a
+// level is assembled into, and the stage timers.
+#pragma once
+
+#include <Eigen/Core>
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dynamics/state.hpp"
+#include "tasks/tasks.hpp"
+
+namespace wbcbench {
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// One QP in the form of wbcbench.qp.Problem, in buffers sized once:
+//   minimise ½ xᵀ H x + gᵀ x  s.t.  A x = b,  l ≤ C x ≤ u,  lb ≤ x ≤ ub.
+// Row-major, so that the NumPy views the solvers read are C-contiguous.
+struct QpBuffers {
+  RowMatrix H, A, C;
+  Vector g, b, l, u, lb, ub;
+  bool has_box = false;
+
+  void resize(int n, int n_eq, int n_in, bool box);
+  // every entry finite except ±inf bounds (a NaN anywhere is a failed tick, not a solve)
+  bool finite() const;
+};
+
+// Seconds per stage of the last tick, the names of the Python path's StageTimer.
+struct StageTimes {
+  double dynamics = 0.0, build = 0.0, params = 0.0;
+};
+
+using Clock = std::chrono::steady_clock;
+inline double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// The robot's dynamics and tasks of one controller.
+class Tick {
+ public:
+  Tick(const std::string& model, const std::vector<std::string>& task_frames,
+       const std::vector<std::string>& contact_frames);
+  virtual ~Tick() = default;
+
+  RobotDynamics& dynamics() { return dyn_; }
+  TaskSet& tasks() { return tasks_; }
+  const StageTimes& times() const { return times_; }
+  int nv() const { return dyn_.nv(); }
+  int k() const { return dyn_.nv() - 6; }
+
+ protected:
+  // dynamics and tasks at (q, v, t); times the dynamics stage
+  void evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t);
+
+  RobotDynamics dyn_;
+  TaskSet tasks_;
+  StageTimes times_;
+};
+
+}  // namespace wbcbench

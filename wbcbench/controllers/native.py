@@ -1,0 +1,218 @@
+"""The Python half of a controller's native tick (``impl: native``).
+
+Set-up stays in Python: the robot's model, the tasks (once started), the limits and the
+controller's settings are handed to a native tick object once. Per tick only ``(q, v, t)``
+cross; the native object computes the dynamics, the task terms and the QP into buffers it owns,
+and the QP reaches the solver as a :class:`~wbcbench.qp.Problem` whose arrays are views of those
+buffers (built once, refilled in place). The solver's answer goes back for the torque.
+
+Stages reported, as the Python path's :class:`~wbcbench.controllers.base.StageTimer` does:
+``dynamics`` and ``build`` (timed natively), ``solve`` (the call into the QP layer, with
+``solve_setup`` / ``solve_native`` / ``solve_internal`` inside), ``total``, and ``crossing``:
+what is left of ``total``, i.e. the calls between Python and the module and the step's own
+Python lines.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from wbcbench import _native
+from wbcbench.errors import ControllerError
+from wbcbench.qp import Problem, Solution
+from wbcbench.tasks.tasks import (
+    ComTask,
+    FrameOrientationTask,
+    FramePoseTask,
+    FramePositionTask,
+    JointDampingTask,
+    JointPostureTask,
+    Task,
+    TaskTerm,
+)
+from wbcbench.tasks.trajectories import (
+    Constant,
+    MinimumJerk,
+    PiecewiseCubic,
+    PiecewiseLinear,
+    Sinusoid,
+    Trajectory,
+)
+
+
+def core() -> Any:
+    """The compiled module; an error naming why when it is not built."""
+    if _native._core is None:
+        raise ControllerError(f"impl: native needs the native module, which is {_native.REASON}")
+    return _native._core
+
+
+def native_trajectory(traj: Trajectory) -> Any:
+    """The native form of a reference trajectory (the same numbers, handed over once)."""
+    c = core().Trajectory
+    if isinstance(traj, Constant):
+        return c.constant(np.asarray(traj.value, dtype=float))
+    if isinstance(traj, Sinusoid):
+        return c.sinusoid(
+            np.asarray(traj.amplitude, dtype=float), traj.frequency, traj.t0, traj.phase
+        )
+    if isinstance(traj, PiecewiseCubic):
+        coef = np.asarray(traj._coef)  # (4, segments, dim), highest power first
+        stacked = np.ascontiguousarray(coef.transpose(1, 0, 2).reshape(-1, coef.shape[2]))
+        return c.cubic(traj._breaks, stacked, traj._first, traj._last)
+    if isinstance(traj, MinimumJerk):
+        return c.minimum_jerk(traj._times, np.asarray(traj._values, dtype=float))
+    if isinstance(traj, PiecewiseLinear):
+        return c.linear(traj._times, np.asarray(traj._values, dtype=float))
+    raise ControllerError(f"a {type(traj).__name__} reference has no native form; use impl: python")
+
+
+#: the native task type of each task class (subclasses first)
+_TASK_TYPES: list[tuple[type[Task], str]] = [
+    (JointDampingTask, "joint_damping"),
+    (JointPostureTask, "joint_posture"),
+    (ComTask, "com"),
+    (FramePositionTask, "frame_position"),
+    (FrameOrientationTask, "frame_orientation"),
+    (FramePoseTask, "frame_pose"),
+]
+
+
+def task_frames(tasks: list[Task]) -> list[str]:
+    """The frames the tasks read, each once, in order of first use."""
+    out: list[str] = []
+    for task in tasks:
+        frame = getattr(task, "frame", "")
+        if frame and frame not in out:
+            out.append(frame)
+    return out
+
+
+def task_spec(task: Task, frames: list[str]) -> Any:
+    """A started task as the native side takes it."""
+    kind = next((name for cls, name in _TASK_TYPES if isinstance(task, cls)), None)
+    if kind is None:
+        raise ControllerError(f"task {task.name!r} ({type(task).__name__}) has no native form")
+    m = task.dim
+    spec = core().TaskSpec()
+    spec.type = getattr(core().TaskType, kind)
+    frame = getattr(task, "frame", "")
+    spec.frame = frames.index(frame) if frame else -1
+    spec.rows = [int(r) for r in task._rows]
+    spec.kp = np.broadcast_to(np.asarray(task.kp, dtype=float), (m,)).copy()
+    spec.kv = np.broadcast_to(np.asarray(task.kv, dtype=float), (m,)).copy()
+    spec.absolute = bool(task.absolute)
+    if task._x0 is None:
+        raise ControllerError(f"task {task.name!r} was not started")
+    spec.x0 = np.asarray(task._x0, dtype=float).copy()
+    rotation = getattr(task, "_R0", None)
+    if rotation is not None:
+        spec.R0 = np.asarray(rotation, dtype=float)
+    assert task.reference is not None
+    spec.reference = native_trajectory(task.reference)
+    return spec
+
+
+def qp_view(qp: Any, name: str) -> Problem:
+    """A Problem over a native QP's buffers: no copy, refilled by every tick."""
+    return Problem(
+        qp.H,
+        qp.g,
+        qp.A,
+        qp.b,
+        qp.C,
+        qp.l,
+        qp.u,
+        qp.lb if qp.has_box else None,
+        qp.ub if qp.has_box else None,
+        name=name,
+    )
+
+
+def frozen(problem: Problem) -> Problem:
+    """A copy of a view Problem that the next tick will not overwrite."""
+    return Problem(
+        problem.H.copy(),
+        problem.g.copy(),
+        problem.A.copy(),
+        problem.b.copy(),
+        problem.C.copy(),
+        problem.l.copy(),
+        problem.u.copy(),
+        None if problem.lb is None else problem.lb.copy(),
+        None if problem.ub is None else problem.ub.copy(),
+        name=problem.name,
+    )
+
+
+def task_terms(tasks: list[Task], native_tasks: Any) -> list[TaskTerm]:
+    """The tick's task terms, copied out of the native task set (for logs and metrics)."""
+    J, drift, ref = native_tasks.J, native_tasks.drift, native_tasks.acc_ref
+    err, err_vel = native_tasks.error, native_tasks.error_vel
+    out = []
+    for i, task in enumerate(tasks):
+        rows = slice(native_tasks.offset(i), native_tasks.offset(i) + native_tasks.dim(i))
+        out.append(
+            TaskTerm(
+                task,
+                J[rows].copy(),
+                drift[rows].copy(),
+                ref[rows].copy(),
+                err[rows].copy(),
+                err_vel[rows].copy(),
+            )
+        )
+    return out
+
+
+class NativeTimer:
+    """Stage times of a native tick (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+        self.total: float | None = None
+        self.solve = self.solve_setup = self.solve_native = self.solve_internal = 0.0
+        self.internal_known = True
+        self.levels: dict[str, float] = {}
+        self.iterations = 0.0
+
+    def add_solution(self, sol: Solution, level: str | None = None) -> None:
+        call = sol.call_time or (sol.setup_time + sol.wall_time)
+        self.solve += call
+        self.solve_setup += sol.setup_time
+        self.solve_native += sol.wall_time
+        if sol.internal_time is None:
+            self.internal_known = False
+        else:
+            self.solve_internal += sol.internal_time
+        if sol.iterations is not None:
+            self.iterations += sol.iterations
+        if level is not None:
+            self.levels[f"solve.{level}"] = self.levels.get(f"solve.{level}", 0.0) + call
+
+    def stop(self) -> None:
+        """End the timed region (what follows, e.g. diagnostics, is not part of the tick)."""
+        self.total = time.perf_counter() - self.t0
+
+    def finish(self, tick: Any) -> dict[str, float]:
+        """The stages of the tick; ``params`` for ticks that have operational-space parameters."""
+        total = time.perf_counter() - self.t0 if self.total is None else self.total
+        dynamics, build = tick.dynamics_time, tick.build_time
+        params = getattr(tick, "params_time", None)
+        out = {
+            "dynamics": dynamics,
+            "build": build,
+            "solve": self.solve,
+            "solve_setup": self.solve_setup,
+            "solve_native": self.solve_native,
+            "solve_internal": self.solve_internal if self.internal_known else float("nan"),
+            "crossing": max(0.0, total - dynamics - build - (params or 0.0) - self.solve),
+            "total": total,
+        }
+        if params is not None:
+            out["params"] = params
+        out.update(self.levels)
+        return out
