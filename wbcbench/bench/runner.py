@@ -36,16 +36,22 @@ def code_version(store: ResultsStore) -> str:
 def run_impl(loaded: LoadedScenario, settings: RunSettings) -> str:
     """``native`` or ``python``: the implementation the run's controller runs (its setting, else
     native where it has a native tick and the module is built); "" for an unknown controller."""
+    from pydantic import ValidationError
+
     from wbcbench.controllers.base import resolve_impl
     from wbcbench.controllers.registry import CONTROLLERS
+    from wbcbench.errors import ControllerError
     from wbcbench.scenarios.load import controller_settings
 
     cls = CONTROLLERS.get(settings.controller)
     if cls is None:
         return ""
     merged = {**controller_settings(loaded, settings.controller), **settings.controller_config}
-    requested = merged.get("impl")
-    return resolve_impl(cls, requested if isinstance(requested, str) else None)
+    try:
+        return cls.impl_for(cls.Config.model_validate(merged))
+    except (ValidationError, ControllerError):  # the run itself will fail and say why
+        requested = merged.get("impl")
+        return resolve_impl(cls, requested if isinstance(requested, str) else None)
 
 
 def run_id(

@@ -122,19 +122,12 @@ class ControlOutput:
     problems: list[Problem] = field(default_factory=list)
 
 
-class StageTimer:
-    """Splits a step's wall time into dynamics / build / solve.
+class SolveTimes:
+    """The solve stages of one step, summed over its QPs: ``solve`` (the calls into the QP
+    layer), ``solve_setup``, ``solve_native``, ``solve_internal``, ``solve.<level>``, and the
+    iterations."""
 
-    ``dynamics`` is what the RobotState spent in Pinocchio during the step (its quantities are
-    lazy, so they are computed wherever the controller first asks for them); ``solve`` is the
-    wall time of the calls into the QP layer (validation, the solver object's set-up or update,
-    the native call); ``build`` is the rest: evaluating tasks and formulating the QPs.
-    """
-
-    def __init__(self, state: RobotState) -> None:
-        self.state = state
-        self._t0 = time.perf_counter()
-        self._dyn0 = state.compute_time
+    def __init__(self) -> None:
         self.solve = 0.0
         self.solve_setup = 0.0
         self.solve_native = 0.0
@@ -160,20 +153,40 @@ class StageTimer:
             key = f"solve.{level}"
             self.levels[key] = self.levels.get(key, 0.0) + call
 
-    def finish(self) -> dict[str, float]:
-        total = time.perf_counter() - self._t0
-        dynamics = self.state.compute_time - self._dyn0
-        out = {
-            "dynamics": dynamics,
-            "build": max(0.0, total - dynamics - self.solve),
+    def solve_stages(self) -> dict[str, float]:
+        return {
             "solve": self.solve,
             "solve_setup": self.solve_setup,
             "solve_native": self.solve_native,
             "solve_internal": self.solve_internal if self.internal_known else float("nan"),
+            **self.levels,
+        }
+
+
+class StageTimer(SolveTimes):
+    """Splits a step's wall time into dynamics / build / solve.
+
+    ``dynamics`` is what the RobotState spent in Pinocchio during the step (its quantities are
+    lazy, so they are computed wherever the controller first asks for them); ``solve`` is the
+    wall time of the calls into the QP layer (validation, the solver object's set-up or update,
+    the native call); ``build`` is the rest: evaluating tasks and formulating the QPs.
+    """
+
+    def __init__(self, state: RobotState) -> None:
+        super().__init__()
+        self.state = state
+        self._t0 = time.perf_counter()
+        self._dyn0 = state.compute_time
+
+    def finish(self) -> dict[str, float]:
+        total = time.perf_counter() - self._t0
+        dynamics = self.state.compute_time - self._dyn0
+        return {
+            "dynamics": dynamics,
+            "build": max(0.0, total - dynamics - self.solve),
+            **self.solve_stages(),
             "total": total,
         }
-        out.update(self.levels)
-        return out
 
 
 class Controller(ABC):
@@ -207,11 +220,16 @@ class Controller(ABC):
             return f"{cls.name} is a {cls.kind} controller; the scenario is {scenario.kind}"
         return ""
 
+    @classmethod
+    def impl_for(cls, config: ControllerConfig) -> str:
+        """The implementation an instance with ``config`` runs (see :func:`resolve_impl`)."""
+        return resolve_impl(cls, config.impl)
+
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         self.ctx = ctx
         self.config = config if config is not None else self.Config()
         #: ``native`` or ``python``: which implementation this instance runs
-        self.impl = resolve_impl(type(self), self.config.impl)
+        self.impl = self.impl_for(self.config)
         if self.impl == "native" and not _native.BUILT:
             raise ControllerError(
                 f"{self.name}: impl: native needs the native module, which is {_native.REASON}; "

@@ -21,8 +21,9 @@ from typing import Any
 import numpy as np
 
 from wbcbench import _native
+from wbcbench.controllers.base import ControlOutput, SolveTimes
 from wbcbench.errors import ControllerError
-from wbcbench.qp import Problem, Solution
+from wbcbench.qp import Problem
 from wbcbench.tasks.tasks import (
     ComTask,
     FrameOrientationTask,
@@ -168,30 +169,57 @@ def task_terms(tasks: list[Task], native_tasks: Any) -> list[TaskTerm]:
     return out
 
 
-class NativeTimer:
+def new_tick(tick_type: str, robot: Any, tasks: list[Task], contact_frames: list[str]) -> Any:
+    """A native tick of ``tick_type`` (e.g. ``QpWbcTick``) holding the started ``tasks``, in
+    that order (their rows stacked so)."""
+    frames = task_frames(tasks)
+    tick = getattr(core(), tick_type)(robot.pin_model.saveToString(), frames, contact_frames)
+    for task in tasks:
+        tick.tasks.add(task_spec(task, frames))
+    return tick
+
+
+def set_limits(settings: Any, tau_max: Any, Cw: Any, lw: Any, uw: Any, n_wrench: int) -> None:
+    """The torque limits and wrench inequalities every native tick takes."""
+    settings.tau_max = np.asarray(tau_max, dtype=float)
+    settings.Cw = np.asarray(Cw, dtype=float).reshape(-1, n_wrench)
+    settings.lw = np.asarray(lw, dtype=float)
+    settings.uw = np.asarray(uw, dtype=float)
+
+
+def output(
+    tick: Any,
+    timer: NativeTimer,
+    terms: list[TaskTerm],
+    problems: list[Problem],
+    message: str | None,
+    diagnostics: dict[str, float] | None = None,
+) -> ControlOutput:
+    """The step's output from the tick's τ, q̈ and wrench, or a failed one when ``message`` is
+    set (zeros of the same sizes); ``problems`` are the QPs to keep (copies)."""
+    ok = message is None
+    tau, qdd, wrench = tick.tau, tick.qdd, tick.wrench
+    return ControlOutput(
+        tau=tau.copy() if ok else np.zeros_like(tau),
+        qdd=qdd.copy() if ok else np.zeros_like(qdd),
+        wrench=wrench.copy() if ok else np.zeros_like(wrench),
+        terms=terms,
+        timings=timer.finish(tick),
+        ok=ok,
+        message=message or "",
+        iterations=timer.iterations,
+        diagnostics=diagnostics or {},
+        problems=[frozen(p) for p in problems],
+    )
+
+
+class NativeTimer(SolveTimes):
     """Stage times of a native tick (see the module docstring)."""
 
     def __init__(self) -> None:
+        super().__init__()
         self.t0 = time.perf_counter()
         self.total: float | None = None
-        self.solve = self.solve_setup = self.solve_native = self.solve_internal = 0.0
-        self.internal_known = True
-        self.levels: dict[str, float] = {}
-        self.iterations = 0.0
-
-    def add_solution(self, sol: Solution, level: str | None = None) -> None:
-        call = sol.call_time or (sol.setup_time + sol.wall_time)
-        self.solve += call
-        self.solve_setup += sol.setup_time
-        self.solve_native += sol.wall_time
-        if sol.internal_time is None:
-            self.internal_known = False
-        else:
-            self.solve_internal += sol.internal_time
-        if sol.iterations is not None:
-            self.iterations += sol.iterations
-        if level is not None:
-            self.levels[f"solve.{level}"] = self.levels.get(f"solve.{level}", 0.0) + call
 
     def stop(self) -> None:
         """End the timed region (what follows, e.g. diagnostics, is not part of the tick)."""
@@ -205,14 +233,10 @@ class NativeTimer:
         out = {
             "dynamics": dynamics,
             "build": build,
-            "solve": self.solve,
-            "solve_setup": self.solve_setup,
-            "solve_native": self.solve_native,
-            "solve_internal": self.solve_internal if self.internal_known else float("nan"),
+            **self.solve_stages(),
             "crossing": max(0.0, total - dynamics - build - (params or 0.0) - self.solve),
             "total": total,
         }
         if params is not None:
             out["params"] = params
-        out.update(self.levels)
         return out

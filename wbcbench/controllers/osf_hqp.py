@@ -57,6 +57,7 @@ class OsfHqp(OsfControllerBase):
     summary = "HQP on the contact-consistent OSF (OSF-HQP): one small QP per level over (w, F_r)"
     Config = OsfHqpConfig
     config: OsfHqpConfig
+    native_types = ("OsfHqpTick", "OsfHqpSettings")
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -66,15 +67,10 @@ class OsfHqp(OsfControllerBase):
         self.WtW = Wc.T @ Wc
         self.problems: list[Problem] = []  # the native QPs' views, made at start()
 
-    def native_class(self) -> Any:
-        return native.core().OsfHqpTick
-
-    def native_settings(self) -> Any:
-        s = native.core().OsfHqpSettings()
+    def native_settings(self, s: Any) -> None:
         s.regularization = self.config.regularization
         s.carry_tolerance = self.config.carry_tolerance
         s.WtW = np.asarray(self.WtW, dtype=float).reshape(self.nc, self.nc)
-        return s
 
     def make_native(self) -> None:
         super().make_native()

@@ -94,7 +94,7 @@ class QpWbc(Controller):
         self.frames = frames
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
         self.nc = 6 * len(frames)
-        self.tick: Any = None  # the native tick, made at start() once the tasks are started
+        self.native_tick: Any = None  # made at start() once the tasks are started
         self.problem: Problem | None = None
 
     def start(self, state: RobotState) -> None:
@@ -106,12 +106,7 @@ class QpWbc(Controller):
         """The native tick, from the started tasks (made by start(), or by the first step of a
         controller whose tasks another one started)."""
         tasks = self.ctx.tasks
-        frames = native.task_frames(tasks)
-        tick = native.core().QpWbcTick(
-            self.ctx.robot.pin_model.saveToString(), frames, list(self.frames)
-        )
-        for task in tasks:
-            tick.tasks.add(native.task_spec(task, frames))
+        tick = native.new_tick("QpWbcTick", self.ctx.robot, tasks, list(self.frames))
         cfg = self.config
         s = native.core().QpWbcSettings()
         s.eliminated = cfg.variables == "eliminated"
@@ -122,12 +117,9 @@ class QpWbc(Controller):
         s.acceleration_weight = cfg.acceleration_weight
         s.torque_weight = cfg.torque_weight
         s.wrench_weight = cfg.wrench_weight
-        s.tau_max = np.asarray(self.ctx.tau_max, dtype=float)
-        s.Cw = np.asarray(self.Cw, dtype=float).reshape(-1, self.nc)
-        s.lw = np.asarray(self.lw, dtype=float)
-        s.uw = np.asarray(self.uw, dtype=float)
+        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
-        self.tick = tick
+        self.native_tick = tick
         self.problem = native.qp_view(tick.qp, "qp_wbc")
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
@@ -228,44 +220,21 @@ class QpWbc(Controller):
 
     def _step_native(self, state: RobotState, t: float) -> ControlOutput:
         """The same step on the native tick: build, solve through the lean path, finish."""
-        if self.tick is None:
+        if self.native_tick is None:
             self.make_native()
         timer = native.NativeTimer()
-        tick, problem = self.tick, self.problem
-        assert tick is not None and problem is not None
-        n, k, nc = state.n, state.k, self.nc
-        if not tick.build(state.q, state.v, t):
-            message = "the QP holds a NaN (state or references not finite)"
-            sol = None
-        else:
+        tick, problem = self.native_tick, self.problem
+        assert problem is not None
+        message: str | None = "the QP holds a NaN (state or references not finite)"
+        if tick.build(state.q, state.v, t):
             sol = self.solver.solve(problem, lean=True)
             timer.add_solution(sol)
-            message = "" if sol.success else f"{sol.solver}: {sol.status.value}: {sol.message}"
-        ok = sol is not None and sol.success and sol.x is not None
-        if ok:
-            assert sol is not None and sol.x is not None
-            tick.finish(sol.x)
-        timings = timer.finish(tick)
+            if sol.success and sol.x is not None:
+                tick.finish(sol.x)
+                message = None
+            else:
+                message = f"{sol.solver}: {sol.status.value}: {sol.message}"
+        timer.stop()
         terms = native.task_terms(self.ctx.tasks, tick.tasks)
-        keep = [native.frozen(problem)] if self.ctx.keep_problems else []
-        if not ok:
-            return ControlOutput(
-                tau=np.zeros(k),
-                qdd=np.zeros(n),
-                wrench=np.zeros(nc),
-                terms=terms,
-                timings=timings,
-                ok=False,
-                message=message,
-                iterations=timer.iterations,
-                problems=keep,
-            )
-        return ControlOutput(
-            tau=tick.tau.copy(),
-            qdd=tick.qdd.copy(),
-            wrench=tick.wrench.copy(),
-            terms=terms,
-            timings=timings,
-            iterations=timer.iterations,
-            problems=keep,
-        )
+        keep = [problem] if self.ctx.keep_problems else []
+        return native.output(tick, timer, terms, keep, message)

@@ -25,7 +25,7 @@ async``). This module also holds what both OSF controllers share (:class:`OsfCon
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field, field_validator
@@ -98,6 +98,23 @@ class OsfControllerBase(Controller):
     config: OsfBaseConfig
     affine: bool = False
     has_native = True
+    #: the native tick's and its settings' type names in the module
+    native_types: ClassVar[tuple[str, str]] = ("", "")
+
+    @classmethod
+    def impl_for(cls, config: ControllerConfig) -> str:
+        """As every controller's, except that ``params: async`` runs on the Python path (its
+        worker is a process)."""
+        impl = super().impl_for(config)
+        assert isinstance(config, OsfBaseConfig)
+        if impl == "native" and parse_params_mode(config.params).kind == "async":
+            if config.impl == "native":
+                raise ControllerError(
+                    f"{cls.name}: params: async has no native form; valid choices with "
+                    "impl: native: inline, periodic:N"
+                )
+            return "python"
+        return impl
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -129,25 +146,15 @@ class OsfControllerBase(Controller):
             for tasks in self.levels
         ]
         self.tick = 0
-        if self.impl == "native" and self.server.mode.kind == "async":
-            if cfg.impl == "native":
-                raise ControllerError(
-                    f"{self.name}: params: async has no native form; valid choices with "
-                    "impl: native: inline, periodic:N"
-                )
-            self.impl = "python"
         #: the tasks in level order (the native tick stacks them so), and the native tick
         self.level_tasks = [task for tasks in self.levels for task in tasks]
         self.native_tick: Any = None
 
     # -- the native tick ----------------------------------------------------------------------
 
-    def native_settings(self) -> Any:
-        """The native settings object of this controller (the subclass's own fields set)."""
-        raise NotImplementedError
-
-    def native_class(self) -> Any:
-        raise NotImplementedError
+    def native_settings(self, s: Any) -> None:
+        """Set the subclass's own fields of its native settings ``s`` (the shared ones are set
+        by :meth:`make_native`)."""
 
     def start(self, state: RobotState) -> None:
         super().start(state)
@@ -158,23 +165,17 @@ class OsfControllerBase(Controller):
         """The native tick, from the started tasks (made by start(), or by the first step of a
         controller whose tasks another one started)."""
         cfg = self.config
-        frames = native.task_frames(self.level_tasks)
-        tick = self.native_class()(
-            self.ctx.robot.pin_model.saveToString(), frames, list(self.frames)
-        )
-        for task in self.level_tasks:
-            tick.tasks.add(native.task_spec(task, frames))
-        s = self.native_settings()
+        tick_type, settings_type = self.native_types
+        tick = native.new_tick(tick_type, self.ctx.robot, self.level_tasks, list(self.frames))
+        s = getattr(native.core(), settings_type)()
+        self.native_settings(s)
         s.level_dims = [sum(t.dim for t in tasks) for tasks in self.levels]
         s.force_level = [kind == "force" for kind in self.kinds]
         s.inverse = cfg.inverse
         s.exact = cfg.coupling == "exact"
         s.rcond = cfg.rcond
         s.period = self.server.mode.period
-        s.tau_max = np.asarray(self.ctx.tau_max, dtype=float)
-        s.Cw = np.asarray(self.Cw, dtype=float).reshape(-1, self.nc)
-        s.lw = np.asarray(self.lw, dtype=float)
-        s.uw = np.asarray(self.uw, dtype=float)
+        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         s.acc_bound = np.concatenate(self.acc_bound or [np.zeros(0)])
         tick.configure(s)
         self.native_tick = tick
@@ -198,30 +199,13 @@ class OsfControllerBase(Controller):
         """The output of a native tick (``message`` set: a failed one); diagnostics are computed
         after the timed region."""
         tick = self.native_tick
-        timings = timer.finish(tick)
         terms = self.native_terms()
-        keep = [native.frozen(p) for p in problems] if self.ctx.keep_problems else []
         diagnostics = {
             "params_staleness": float(tick.staleness),
             "params_compute_time": tick.params_compute_time,
             **diagnostics,
         }
-        k, n = self.ctx.robot.k, self.ctx.robot.nv
-        if message is not None:
-            return ControlOutput(
-                tau=np.zeros(k),
-                qdd=np.zeros(n),
-                wrench=np.zeros(self.nc),
-                terms=terms,
-                timings=timings,
-                ok=False,
-                message=message,
-                iterations=timer.iterations,
-                diagnostics=diagnostics,
-                problems=keep,
-            )
-        tau, wrench = tick.tau.copy(), tick.wrench.copy()
-        if self.config.consistency:
+        if message is None and self.config.consistency:
             by_task = {id(term.task): term for term in terms}
             per_level = [[by_task[id(task)] for task in tasks] for tasks in self.levels]
             jac = [
@@ -229,21 +213,16 @@ class OsfControllerBase(Controller):
                 for lv in per_level
             ]
             partial = [row.copy() for row in tick.partial]
+            tau = tick.tau.copy()
             extra = tau - partial[-1] if partial else tau
             params = self.model.params(state, jac)
             diagnostics.update(
-                self.consistency_diagnostics(state, params, per_level, partial, extra, wrench)
+                self.consistency_diagnostics(
+                    state, params, per_level, partial, extra, tick.wrench.copy()
+                )
             )
-        return ControlOutput(
-            tau=tau,
-            qdd=tick.qdd.copy(),
-            wrench=wrench,
-            terms=terms,
-            timings=timings,
-            iterations=timer.iterations,
-            diagnostics=diagnostics,
-            problems=keep,
-        )
+        keep = problems if self.ctx.keep_problems else []
+        return native.output(tick, timer, terms, keep, message, diagnostics)
 
     def close(self) -> None:
         """Stop the parameter worker (``params: async``)."""
@@ -403,6 +382,7 @@ class ToOsf(OsfControllerBase):
     Config = ToOsfConfig
     config: ToOsfConfig
     affine = True
+    native_types = ("ToOsfTick", "ToOsfSettings")
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -410,12 +390,8 @@ class ToOsf(OsfControllerBase):
         self.problem: Problem | None = None  # the native QP's view, made at start()
         self.Sf = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
 
-    def native_class(self) -> Any:
-        return native.core().ToOsfTick
-
-    def native_settings(self) -> Any:
+    def native_settings(self, s: Any) -> None:
         cfg = self.config
-        s = native.core().ToOsfSettings()
         weights = cfg.weights[:1] if cfg.weighting == "identical" else cfg.weights
         s.row_weights = np.concatenate(
             [np.full(t.dim, task_weight_of(t, weights)) for t in self.level_tasks] or [np.zeros(0)]
@@ -424,7 +400,6 @@ class ToOsf(OsfControllerBase):
         s.wrench_total = cfg.wrench_cost == "total"
         s.regularization = cfg.regularization
         s.Sf = np.asarray(self.Sf, dtype=float).reshape(-1, self.nc)
-        return s
 
     def make_native(self) -> None:
         super().make_native()
