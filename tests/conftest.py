@@ -5,9 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from wbcbench import _native
 from wbcbench.robots.loader import Robot, load_robot
 
 ROBOTS = ("tocabi_like", "comanplus_like")
+
+#: the impls every controller with a native tick is tested on
+IMPLS = ["python", "native"] if _native.BUILT else ["python"]
 
 
 @pytest.fixture(scope="session", params=ROBOTS)

@@ -33,6 +33,7 @@ from wbcbench import _native
 from wbcbench.controllers.base import Controller
 from wbcbench.controllers.registry import make_controller
 from wbcbench.dynamics.state import RobotState
+from wbcbench.errors import ControllerError
 from wbcbench.qp import Problem, available_solvers
 from wbcbench.qp.settings import TIER_EPS as TIERS_EPS
 from wbcbench.robots.loader import load_robot
@@ -239,3 +240,18 @@ def test_impl_is_chosen_and_checked() -> None:
     assert make_controller("hqp", ctx).impl == "python"
     with pytest.raises(Exception, match="'python'"):
         make_controller("hqp", ctx, {"impl": "native"})
+
+
+def test_impl_default_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    loaded = load_scenario("tocabi_stand_sway")
+    robot = load_robot(loaded.spec.robot)
+    ctx = scenario_context(loaded, robot, solver="daqp")
+    monkeypatch.setenv("WBCBENCH_IMPL", "python")
+    assert make_controller("to_osf", ctx).impl == "python"
+    assert make_controller("to_osf", ctx, {"impl": "native"}).impl == "native"
+    monkeypatch.setenv("WBCBENCH_IMPL", "native")
+    assert make_controller("hqp", ctx).impl == "python"  # no native tick: its only impl
+    monkeypatch.setenv("WBCBENCH_IMPL", "fast")
+    with pytest.raises(ControllerError) as err:
+        make_controller("to_osf", ctx)
+    assert str(err.value) == "WBCBENCH_IMPL='fast'; valid choices: native, python (or unset)"

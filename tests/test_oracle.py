@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.conftest import grounded_state
+from tests.conftest import IMPLS, grounded_state
 from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
@@ -19,6 +19,12 @@ from wbcbench.sim.setup import scenario_context
 
 CONTROLLERS = ["qp_wbc", "hqp", "to_osf", "osf_hqp", "lqp", "rc_lqp"]
 SCENARIOS = ["tocabi_stand_sway", "ahn_double_support", "ahn_single_support"]
+#: (controller, impl): every impl of the controllers that have a native tick
+CASES = [
+    (name, impl)
+    for name in CONTROLLERS
+    for impl in (IMPLS if controller_class(name).has_native else ["python"])
+]
 STATES = 24
 
 
@@ -28,11 +34,15 @@ def exact_solver(controller: str) -> str:
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS)
-@pytest.mark.parametrize("controller", CONTROLLERS)
-def test_ok_steps_realise_their_prediction(tocabi: Robot, controller: str, scenario: str) -> None:
+@pytest.mark.parametrize(("controller", "impl"), CASES)
+def test_ok_steps_realise_their_prediction(
+    tocabi: Robot, controller: str, impl: str, scenario: str
+) -> None:
     loaded = load_scenario(scenario)
     ctx = scenario_context(loaded, tocabi, solver=exact_solver(controller), tier="high")
-    ctrl = controller_class(controller)(ctx, None)
+    cls = controller_class(controller)
+    ctrl = cls(ctx, cls.Config(impl=impl))
+    assert ctrl.impl == impl
     frames = ctx.contact_frames
     t0, t1 = loaded.spec.metrics.window
     rng = np.random.default_rng(2026)

@@ -33,7 +33,7 @@ from wbcbench.tasks.tasks import (
     Task,
 )
 
-from .conftest import random_standing_state
+from .conftest import IMPLS, random_standing_state
 
 threadpool_limits(1)  # scipy's own OpenBLAS spins a second thread on these small matrices
 
@@ -183,15 +183,18 @@ def make(cls, robot, tasks, frames, solver="daqp", **cfg):
     return cls(context(robot, tasks, frames, solver), config)
 
 
+@pytest.mark.parametrize("impl", IMPLS)
 @pytest.mark.parametrize("cls", [OsfHqp, ToOsf])
-def test_oracle_100_random_states(comanplus: Robot, cls: type[OsfControllerBase]) -> None:
+def test_oracle_100_random_states(
+    comanplus: Robot, cls: type[OsfControllerBase], impl: str
+) -> None:
     """(a), (b), (c), (e) at 100 random states, 1–5 levels, 1–3 contacts, nothing active."""
     rng = np.random.default_rng(11)
     worst = {"contact_acc": 0.0, "tracking": 0.0, "hierarchy": 0.0, "wrench": 0.0}
     for _ in range(100):
         tasks, frames, q, v = random_case(comanplus, rng)
         start = RobotState(comanplus, q, v)
-        full = make(cls, comanplus, tasks, frames)
+        full = make(cls, comanplus, tasks, frames, impl=impl)
         full.start(start)
         out = full.step(RobotState(comanplus, q, v), 0.0)
         assert out.ok, out.message
@@ -211,7 +214,7 @@ def test_oracle_100_random_states(comanplus: Robot, cls: type[OsfControllerBase]
                 )
         # (c) adding the lowest level changes nothing above it
         if len(tasks) > 1:
-            upper = make(cls, comanplus, tasks[:-1], frames)
+            upper = make(cls, comanplus, tasks[:-1], frames, impl=impl)
             out_u = upper.step(RobotState(comanplus, q, v), 0.0)
             acc_u, _ = realised((comanplus, q, v), out_u.tau, frames, tasks[:-1])
             for t in tasks[:-1]:

@@ -1,13 +1,17 @@
-"""The parameter server: inline, periodic:N and async (worker process, shared memory)."""
+"""The parameter server: inline, periodic:N and async (a worker process with shared memory on
+the Python path, a worker thread on the native one)."""
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
+from wbcbench import _native
+from wbcbench.bench.runner import run_impl
 from wbcbench.controllers.registry import make_controller
 from wbcbench.dynamics.osf import OsfModel, OsfParams, group_levels
 from wbcbench.dynamics.state import RobotState
@@ -104,7 +108,11 @@ def test_closed_loop_with_async_params_cleans_up(tocabi: Robot) -> None:
     before = set(mp.active_children())
     result = run_closed_loop(
         loaded,
-        RunSettings(controller="osf_hqp", solver="daqp", controller_config={"params": "async"}),
+        RunSettings(
+            controller="osf_hqp",
+            solver="daqp",
+            controller_config={"params": "async", "impl": "python"},
+        ),
     )
     assert result.status == "ok", result.message
     stale = result.log.arrays()["diag.params_staleness"]
@@ -117,7 +125,7 @@ def test_closed_loop_with_async_params_cleans_up(tocabi: Robot) -> None:
 def test_controller_close_stops_the_worker(tocabi: Robot) -> None:
     loaded = load_scenario("tocabi_stand_sway")
     ctx = scenario_context(loaded, tocabi, solver="daqp")
-    ctrl = make_controller("to_osf", ctx, {"params": "async"})
+    ctrl = make_controller("to_osf", ctx, {"params": "async", "impl": "python"})
     q, v = tocabi.keyframe("stand")
     ctrl.start(RobotState(tocabi, q, v))
     for tick in range(5):
@@ -129,3 +137,62 @@ def test_controller_close_stops_the_worker(tocabi: Robot) -> None:
     assert proc is not None and proc.is_alive()
     ctrl.close()
     assert not proc.is_alive()
+
+
+# -- the native worker thread --------------------------------------------------------------------
+
+native_only = pytest.mark.skipif(not _native.BUILT, reason=f"the native module is {_native.REASON}")
+
+
+def os_threads() -> int:
+    return len(os.listdir("/proc/self/task"))
+
+
+@native_only
+@pytest.mark.parametrize("name", ["to_osf", "osf_hqp"])
+def test_native_async_uses_the_set_of_a_published_state(tocabi: Robot, name: str) -> None:
+    """Every tick's torque realises what the parameters of the state published ``staleness``
+    ticks earlier predict, and the worker's newer sets do reach the loop."""
+    loaded = load_scenario("tocabi_stand_sway")
+    ctx = scenario_context(loaded, tocabi, solver="daqp")
+    ctrl = make_controller(name, ctx, {"params": "async", "impl": "native"})
+    rng = np.random.default_rng(5)
+    states = [random_standing_state(tocabi, rng, 0.02, 0.1) for _ in range(12)]
+    ctrl.start(RobotState(tocabi, *tocabi.keyframe("stand")))
+    threads = os_threads()
+    used = []
+    for n, (q, v) in enumerate(states):
+        out = ctrl.step(RobotState(tocabi, q, v), 1.0 + 1e-3 * n)
+        assert out.ok, out.message
+        stale = int(out.diagnostics["params_staleness"])
+        assert 0 <= stale <= n
+        used.append(n - stale)
+        p = ctrl.model.params(RobotState(tocabi, *states[n - stale]))  # type: ignore[attr-defined]
+        scale = max(1.0, float(np.abs(out.qdd).max()))
+        assert np.abs(p.qdd(out.tau) - out.qdd).max() <= 1e-8 * scale
+        assert np.abs(p.wrench(out.tau) - out.wrench).max() <= 1e-8 * max(
+            1.0, float(np.abs(out.wrench).max())
+        )
+        time.sleep(0.01)  # let the worker catch up with the newest state
+    assert used[0] == 0 and len(set(used)) > len(used) // 2, used
+    assert ctrl.native_tick.worker_sets >= len(set(used)) - 1  # type: ignore[attr-defined]
+    ctrl.close()
+    assert os_threads() < threads  # the worker thread is joined
+
+
+@native_only
+def test_native_async_closed_loop(tocabi: Robot) -> None:
+    loaded = load_scenario("tocabi_stand_sway", ["duration=0.2"])
+    assert (
+        run_impl(loaded, RunSettings(controller="to_osf", controller_config={"params": "async"}))
+        == "native"
+    )
+    threads = os_threads()
+    result = run_closed_loop(
+        loaded,
+        RunSettings(controller="to_osf", solver="daqp", controller_config={"params": "async"}),
+    )
+    assert result.status == "ok", result.message
+    stale = result.log.arrays()["diag.params_staleness"]
+    assert np.all(stale >= 0) and stale.max() >= 1
+    assert os_threads() <= threads

@@ -13,7 +13,7 @@ from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.load import load_scenario
 from wbcbench.sim.setup import scenario_context
 
-from .conftest import random_standing_state
+from .conftest import IMPLS, random_standing_state
 
 
 def objective(problem: Problem, x: np.ndarray) -> float:
@@ -56,9 +56,11 @@ def check_against_oracle(robot: Robot, controller: QpWbc, n_states: int, seed: i
     return worst
 
 
+@pytest.mark.parametrize("impl", IMPLS)
 @pytest.mark.parametrize("variables", ["full", "eliminated"])
-def test_oracle_100_states(robot: Robot, variables: str) -> None:
-    controller = make_qp_wbc(robot, "proxqp", "high", variables=variables)
+def test_oracle_100_states(robot: Robot, variables: str, impl: str) -> None:
+    controller = make_qp_wbc(robot, "proxqp", "high", variables=variables, impl=impl)
+    assert controller.impl == impl
     worst = check_against_oracle(robot, controller, n_states=100, seed=1)
     assert worst["contact_acc"] <= 1e-6, worst
     assert worst["wrench_rel"] <= 1e-6, worst

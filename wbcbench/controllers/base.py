@@ -9,6 +9,7 @@ with a fresh :class:`~wbcbench.dynamics.state.RobotState`. It never calls a QP l
 
 from __future__ import annotations
 
+import os
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
@@ -47,12 +48,29 @@ class NativeConfig(ControllerConfig):
     )
 
 
+#: the environment variable that sets the default impl of every controller that has a native
+#: tick (``WBCBENCH_IMPL=python make bench`` runs the Python references throughout)
+IMPL_ENV = "WBCBENCH_IMPL"
+
+
+def default_impl() -> str | None:
+    """``native``, ``python`` or None (unset): the default that ``WBCBENCH_IMPL`` asks for."""
+    value = os.environ.get(IMPL_ENV, "").strip()
+    if value in ("", "native", "python"):
+        return value or None
+    raise ControllerError(f"{IMPL_ENV}={value!r}; valid choices: native, python (or unset)")
+
+
 def resolve_impl(cls: type[Controller], requested: str | None) -> str:
-    """The implementation a controller runs: the requested one, else native where the
-    controller has a native tick and the module is built, else python."""
+    """The implementation a controller runs: the requested one, else ``WBCBENCH_IMPL``'s where
+    it is set, else native where the controller has a native tick and the module is built, else
+    python."""
     if requested is not None:
         return requested
-    return "native" if cls.has_native and _native.BUILT else "python"
+    if not cls.has_native:
+        return "python"
+    # asked for by WBCBENCH_IMPL, native fails at construction when the module is not built
+    return default_impl() or ("native" if _native.BUILT else "python")
 
 
 @dataclass

@@ -101,21 +101,6 @@ class OsfControllerBase(Controller):
     #: the native tick's and its settings' type names in the module
     native_types: ClassVar[tuple[str, str]] = ("", "")
 
-    @classmethod
-    def impl_for(cls, config: ControllerConfig) -> str:
-        """As every controller's, except that ``params: async`` runs on the Python path (its
-        worker is a process)."""
-        impl = super().impl_for(config)
-        assert isinstance(config, OsfBaseConfig)
-        if impl == "native" and parse_params_mode(config.params).kind == "async":
-            if config.impl == "native":
-                raise ControllerError(
-                    f"{cls.name}: params: async has no native form; valid choices with "
-                    "impl: native: inline, periodic:N"
-                )
-            return "python"
-        return impl
-
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
         cfg = self.config
@@ -175,6 +160,7 @@ class OsfControllerBase(Controller):
         s.exact = cfg.coupling == "exact"
         s.rcond = cfg.rcond
         s.period = self.server.mode.period
+        s.asynchronous = self.server.mode.kind == "async"
         native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         s.acc_bound = np.concatenate(self.acc_bound or [np.zeros(0)])
         tick.configure(s)
@@ -225,8 +211,10 @@ class OsfControllerBase(Controller):
         return native.output(tick, timer, terms, keep, message, diagnostics)
 
     def close(self) -> None:
-        """Stop the parameter worker (``params: async``)."""
+        """Stop the parameter worker (``params: async``): the process, or the native thread."""
         self.server.close()
+        if self.native_tick is not None:
+            self.native_tick.close()
 
     # -- per tick ---------------------------------------------------------------------------
 

@@ -16,6 +16,7 @@ void bind_osf(nb::module_& m) {
       .def_rw("exact", &OsfSettings::exact)
       .def_rw("rcond", &OsfSettings::rcond)
       .def_rw("period", &OsfSettings::period)
+      .def_rw("asynchronous", &OsfSettings::asynchronous)
       .def_rw("tau_max", &OsfSettings::tau_max)
       .def_rw("Cw", &OsfSettings::Cw)
       .def_rw("lw", &OsfSettings::lw)
@@ -42,6 +43,9 @@ void bind_osf(nb::module_& m) {
       .def_prop_ro("params_compute_time",
                    [](const OsfTick& t) { return t.params().compute_time; })
       .def_prop_ro("message", &OsfTick::message)
+      .def_prop_ro("worker_sets", &OsfTick::worker_sets)
+      .def("close", &OsfTick::close, "Stop the parameter worker thread (params: async).",
+           nb::call_guard<nb::gil_scoped_release>())
       .def_prop_ro("partial", &OsfTick::partial, kView)
       .def_prop_ro("tau", &OsfTick::tau, kView)
       .def_prop_ro("qdd", &OsfTick::qdd, kView)

@@ -47,6 +47,10 @@ void OsfTick::configure_osf(const OsfSettings& s, bool affine) {
   spec.rcond = s.rcond;
   spec.affine = affine;
   model_ = std::make_unique<OsfModel>(spec);
+  worker_.reset();
+  if (s.asynchronous)  // made here, so that no tick pays for loading its model
+    worker_ = std::make_unique<ParamsWorker>(model_text_, task_frames_, contact_frames_, tasks_,
+                                             spec);
   have_params_ = false;
   tick_ = -1;
   partial_.setZero(L, k());
@@ -58,6 +62,16 @@ void OsfTick::configure_osf(const OsfSettings& s, bool affine) {
 void OsfTick::evaluate_osf(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v,
                            double t) {
   ++tick_;
+  if (os_.asynchronous && have_params_) {
+    // the loop's part: publish the state, take the newest complete set
+    dyn_.set_inverse(false);
+    evaluate(q, v, t);
+    const auto t0 = Clock::now();
+    worker_->publish(q, v, t, tick_);
+    worker_->take_newer(params_);
+    times_.params = seconds_since(t0);
+    return;
+  }
   const bool due = !have_params_ || tick_ - params_.tick >= os_.period;
   dyn_.set_inverse(due);  // M⁻¹ only on the ticks that compute parameters
   evaluate(q, v, t);
@@ -66,6 +80,7 @@ void OsfTick::evaluate_osf(const Eigen::Ref<const Vector>& q, const Eigen::Ref<c
     model_->compute(dyn_, tasks_.J(), tasks_.drift(), tick_, params_);
     have_params_ = true;
     times_.params = params_.compute_time;
+    if (worker_) worker_->publish(q, v, t, tick_);  // the worker starts from this state
   }
 }
 

@@ -1,12 +1,14 @@
 // The two OSF controllers' ticks: the native mirrors of wbcbench/controllers/to_osf.py (TO-OSF,
 // one QP over the task references and an internal wrench) and osf_hqp.py (OSF-HQP, one small QP
 // per priority level, then a wrench QP). Both read the operational-space parameters of
-// dynamics/osf.hpp, computed in the loop every `period` ticks (params: inline | periodic:N).
+// dynamics/osf.hpp, computed in the loop every `period` ticks (params: inline | periodic:N) or
+// on a worker thread (params: async, controllers/params_worker.hpp).
 #pragma once
 
 #include <string>
 #include <vector>
 
+#include "controllers/params_worker.hpp"
 #include "controllers/tick.hpp"
 #include "dynamics/osf.hpp"
 
@@ -21,6 +23,7 @@ struct OsfSettings {
   bool exact = true;            // coupling: exact | literal
   double rcond = 1e-9;
   int period = 1;               // parameters recomputed every `period` ticks (inline: 1)
+  bool asynchronous = false;    // params: async — on a worker thread after the first tick
   Vector tau_max;               // (k,)
   Matrix Cw;                    // wrench inequalities (nw, 6c)
   Vector lw, uw;
@@ -49,6 +52,9 @@ class OsfTick : public Tick {
   const OsfParams& params() const { return params_; }
   long staleness() const { return tick_ - params_.tick; }
   const std::string& message() const { return message_; }
+  // parameter sets the worker thread computed (params: async), and stopping it
+  long worker_sets() const { return worker_ ? worker_->computed() : 0; }
+  void close() { worker_.reset(); }
   // the cumulative torques Γ_{≤1} … Γ_{≤L} of the last tick (L, k)
   const RowMatrix& partial() const { return partial_; }
   const Vector& tau() const { return tau_; }
@@ -66,6 +72,7 @@ class OsfTick : public Tick {
 
   OsfSettings os_;
   std::unique_ptr<OsfModel> model_;
+  std::unique_ptr<ParamsWorker> worker_;  // params: async, from the second tick on
   OsfParams params_;
   bool have_params_ = false;
   long tick_ = -1;

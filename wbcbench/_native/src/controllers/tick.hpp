@@ -55,6 +55,9 @@ class Tick {
   // dynamics and tasks at (q, v, t); times the dynamics stage
   void evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t);
 
+  // what the dynamics were made from (a worker thread makes its own from them)
+  std::string model_text_;
+  std::vector<std::string> task_frames_, contact_frames_;
   RobotDynamics dyn_;
   TaskSet tasks_;
   StageTimes times_;
