@@ -78,37 +78,42 @@ class OsfHqp(OsfControllerBase):
         names = [f"T{i + 1}" for i in range(len(self.levels))] + ["wrench"]
         self.problems = [native.qp_view(tick.qp(i), names[i]) for i in range(tick.n_qps)]
 
-    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same cascade on the native tick: the level QPs, then the wrench QP."""
-        if self.native_tick is None:
-            self.make_native()
-        timer = native.NativeTimer()
+    def native_region(
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
+    ) -> tuple[str | None, list[Problem]]:
+        """The timed region of a native step: the level QPs, then the wrench QP. Returns None
+        or the message of a failed tick, and the QPs it solved."""
         tick = self.native_tick
         L = len(self.levels)
         solvers = [*self.solvers, self.final_solver]
-        message: str | None = None
         used: list[Problem] = []
-        ok = tick.build(state.q, state.v, t)
-        if not ok:
-            message = tick.message or "the QP holds a NaN (state or references not finite)"
+        if not tick.build(q, v, t):
+            return tick.message or "the QP holds a NaN (state or references not finite)", used
         for i, problem in enumerate(self.problems):
-            if message is not None:
-                break
             level = f"T{i + 1}" if i < L else "wrench"
             used.append(problem)
             sol = solvers[min(i, L)].solve(problem, lean=True)
             timer.add_solution(sol, level)
             if not sol.success or sol.x is None:
                 where = f"level {level}" if i < L else "wrench level"
-                message = f"{where}: {sol.solver}: {sol.status.value}: {sol.message}"
-            elif i < L:
+                return f"{where}: {sol.solver}: {sol.status.value}: {sol.message}", used
+            if i < L:
                 if not tick.level(i, sol.x):
-                    message = "the QP holds a NaN (state or references not finite)"
+                    return "the QP holds a NaN (state or references not finite)", used
             else:
                 tick.finish(sol.x)
-        if message is None and len(self.problems) == L:
+        if len(self.problems) == L:
             tick.finish(np.zeros(0))
+        return None, used
+
+    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
+        """The same cascade on the native tick (see :meth:`native_region`)."""
+        if self.native_tick is None:
+            self.make_native()
+        timer = native.NativeTimer()
+        message, used = self.native_region(state.q, state.v, t, timer)
         timer.stop()
+        tick = self.native_tick
         diagnostics = {}
         if message is None:
             diagnostics = {f"slack.T{i + 1}": float(w) for i, w in enumerate(tick.slack_norms)}

@@ -218,23 +218,31 @@ class QpWbc(Controller):
             problems=[problem] if self.ctx.keep_problems else [],
         )
 
+    def native_region(
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
+    ) -> str | None:
+        """The timed region of a native step: build, solve through the lean path, finish.
+        Returns None, or the message of a failed tick."""
+        tick, problem = self.native_tick, self.problem
+        assert problem is not None
+        if not tick.build(q, v, t):
+            return "the QP holds a NaN (state or references not finite)"
+        sol = self.solver.solve(problem, lean=True)
+        timer.add_solution(sol)
+        if not sol.success or sol.x is None:
+            return f"{sol.solver}: {sol.status.value}: {sol.message}"
+        tick.finish(sol.x)
+        return None
+
     def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same step on the native tick: build, solve through the lean path, finish."""
+        """The same step on the native tick (see :meth:`native_region`)."""
         if self.native_tick is None:
             self.make_native()
         timer = native.NativeTimer()
+        message = self.native_region(state.q, state.v, t, timer)
+        timer.stop()
         tick, problem = self.native_tick, self.problem
         assert problem is not None
-        message: str | None = "the QP holds a NaN (state or references not finite)"
-        if tick.build(state.q, state.v, t):
-            sol = self.solver.solve(problem, lean=True)
-            timer.add_solution(sol)
-            if sol.success and sol.x is not None:
-                tick.finish(sol.x)
-                message = None
-            else:
-                message = f"{sol.solver}: {sol.status.value}: {sol.message}"
-        timer.stop()
         terms = native.task_terms(self.ctx.tasks, tick.tasks)
         keep = [problem] if self.ctx.keep_problems else []
         return native.output(tick, timer, terms, keep, message)

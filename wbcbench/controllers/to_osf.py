@@ -393,23 +393,30 @@ class ToOsf(OsfControllerBase):
         super().make_native()
         self.problem = native.qp_view(self.native_tick.qp, "to_osf")
 
+    def native_region(
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
+    ) -> str | None:
+        """The timed region of a native step: build, solve through the lean path, finish.
+        Returns None, or the message of a failed tick."""
+        tick, problem = self.native_tick, self.problem
+        assert problem is not None
+        if not tick.build(q, v, t):
+            return tick.message or "the QP holds a NaN (state or references not finite)"
+        sol = self.solver.solve(problem, lean=True)
+        timer.add_solution(sol)
+        if not sol.success or sol.x is None:
+            return f"{sol.solver}: {sol.status.value}: {sol.message}"
+        tick.finish(sol.x)
+        return None
+
     def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same step on the native tick: build, solve through the lean path, finish."""
+        """The same step on the native tick (see :meth:`native_region`)."""
         if self.native_tick is None:
             self.make_native()
         timer = native.NativeTimer()
-        tick, problem = self.native_tick, self.problem
-        assert problem is not None
-        message: str | None = "the QP holds a NaN (state or references not finite)"
-        if tick.build(state.q, state.v, t):
-            sol = self.solver.solve(problem, lean=True)
-            timer.add_solution(sol)
-            if sol.success and sol.x is not None:
-                tick.finish(sol.x)
-                message = None
-            else:
-                message = f"{sol.solver}: {sol.status.value}: {sol.message}"
+        message = self.native_region(state.q, state.v, t, timer)
         timer.stop()
+        tick = self.native_tick
         diagnostics: dict[str, float] = {}
         if message is None:
             amend = tick.rho - tick.tasks.acc_ref
@@ -417,7 +424,8 @@ class ToOsf(OsfControllerBase):
             for i, task in enumerate(self.level_tasks):
                 rows = slice(tasks.offset(i), tasks.offset(i) + tasks.dim(i))
                 diagnostics[f"amend.{task.name}"] = float(np.linalg.norm(amend[rows]))
-        return self.native_output(state, timer, [problem], message, diagnostics)
+        assert self.problem is not None
+        return self.native_output(state, timer, [self.problem], message, diagnostics)
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":

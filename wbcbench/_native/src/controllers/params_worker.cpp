@@ -1,10 +1,15 @@
 #include "controllers/params_worker.hpp"
 
+#include <chrono>
 #include <exception>
 #include <stdexcept>
 #include <utility>
 
 namespace wbcbench {
+
+namespace {
+constexpr std::chrono::microseconds kPoll{2000};
+}  // namespace
 
 ParamsWorker::ParamsWorker(const std::string& model, const std::vector<std::string>& task_frames,
                            const std::vector<std::string>& contact_frames, const TaskSet& tasks,
@@ -33,7 +38,7 @@ void ParamsWorker::publish(const Eigen::Ref<const Vector>& q, const Eigen::Ref<c
     tick_in_ = tick;
     ++seq_in_;
   }
-  in_cv_.notify_one();
+  if (sleeping_.load()) in_cv_.notify_one();
 }
 
 bool ParamsWorker::take_newer(OsfParams& current) {
@@ -54,9 +59,15 @@ void ParamsWorker::run() {
     for (;;) {
       double t;
       long tick;
+      // poll for up to a control period's worth, then block until the loop publishes
+      const auto until = std::chrono::steady_clock::now() + kPoll;
+      while (seq_in_.load() == seen && !stop_ && std::chrono::steady_clock::now() < until)
+        std::this_thread::yield();
       {
         std::unique_lock<std::mutex> lock(in_mutex_);
-        in_cv_.wait(lock, [&] { return stop_ || seq_in_ != seen; });
+        sleeping_ = true;
+        in_cv_.wait(lock, [&] { return stop_ || seq_in_.load() != seen; });
+        sleeping_ = false;
         if (stop_) return;
         seen = seq_in_;
         q = q_in_;

@@ -51,8 +51,11 @@ class ParamsWorker {
   Vector q_in_, v_in_;
   double t_in_ = 0.0;
   long tick_in_ = -1;
-  long seq_in_ = 0;
-  bool stop_ = false;
+  std::atomic<long> seq_in_{0};
+  std::atomic<bool> stop_{false};
+  // the worker blocks on in_cv_ only after polling for a while: waking a blocked thread costs
+  // the loop a system call (tens of µs on a virtual machine), so the loop notifies only then
+  std::atomic<bool> sleeping_{false};
   // the newest complete set (out_mutex_)
   std::mutex out_mutex_;
   OsfParams latest_;

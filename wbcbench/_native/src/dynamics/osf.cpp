@@ -82,11 +82,14 @@ int psd_pinv(const Matrix& X, bool by_svd, double rcond, double scale, Matrix& o
   if (r == 0) return 0;
   if (r == m && spd_inverse(X, out)) return r;
   // X = Q₁ C Q₁ᵀ with C = Q₁ᵀ X Q₁ positive definite: X⁺ = Q₁ C⁻¹ Q₁ᵀ
-  const Matrix Q1 = Matrix(qr.householderQ()).leftCols(r);
-  const Matrix C = Q1.transpose() * X * Q1;
-  Eigen::LLT<Matrix> llt(C);
+  Matrix Q1 = Matrix::Identity(m, r);
+  Q1.applyOnTheLeft(qr.householderQ());  // the first r columns of Q only
+  const Matrix XQ1 = X * Q1;
+  Eigen::LLT<Matrix> llt(Q1.transpose() * XQ1);
   if (llt.info() != Eigen::Success) throw std::runtime_error("psd_pinv: range block not SPD");
-  out.noalias() = Q1 * llt.solve(Q1.transpose());
+  Matrix S = Q1.transpose();
+  llt.solveInPlace(S);
+  out.noalias() = Q1 * S;
   return r;
 }
 
@@ -155,30 +158,33 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
   }
   p.Nw = dec.left_null;
 
-  // -- the levels
+  // -- the levels: the products with every task row at once (fewer, larger GEMMs)
   const int L = static_cast<int>(spec_.level_dims.size());
   p.levels.resize(L);
   p.exact = spec_.exact;
-  Matrix N, a, X, Jbar;
+  Matrix JPhi, JY, JMinv, N, a, aW, X, Jbar;
+  JPhi.noalias() = J * p.Phi_a;
+  JY.noalias() = J * Ybar;
+  JMinv.noalias() = J * Minv;
+  // each row's inverse inertia without contacts or levels above sets its level's rank scale
+  const Vector inertia = JMinv.cwiseProduct(J).rowwise().sum();
   Eigen::Index row = 0;
   for (int i = 0; i < L; ++i) {
     const Eigen::Index m = spec_.level_dims[i];
-    const auto Ji = J.middleRows(row, m);
     LevelParams& lv = p.levels[i];
-    lv.Jhat.noalias() = Ji * p.Phi_a;
+    lv.Jhat = JPhi.middleRows(row, m);
     lv.bias = drift.segment(row, m);
-    lv.bias.noalias() += Ji * p.qdd0;
+    lv.bias.noalias() += J.middleRows(row, m) * p.qdd0;
     if (i == 0) {
-      a.noalias() = Ji * Ybar;
+      a = JY.middleRows(row, m);
     } else {
-      const Matrix Js = Ji * Ybar;
-      a.noalias() = Js * N;
+      a.noalias() = JY.middleRows(row, m) * N;
     }
-    X.noalias() = a * p.W * a.transpose();
-    // the task's inverse inertia without contacts or levels above sets the rank's scale
-    const double scale = m ? (Ji * Minv).cwiseProduct(Ji).rowwise().sum().maxCoeff() : 0.0;
-    const Matrix Xs = 0.5 * (X + X.transpose());
-    psd_pinv(Xs, spec_.inverse == OsfInverse::kSvd, spec_.rcond, scale, lv.Lam);
+    aW.noalias() = a * p.W;
+    X.noalias() = aW * a.transpose();
+    const double scale = m ? inertia.segment(row, m).maxCoeff() : 0.0;
+    X = 0.5 * (X + X.transpose()).eval();
+    psd_pinv(X, spec_.inverse == OsfInverse::kSvd, spec_.rcond, scale, lv.Lam);
     lv.Jstar = a;
     lv.B.noalias() = a.transpose() * lv.Lam;
     lv.E = spec_.force_level[i] ? Matrix(a.transpose()) : lv.B;
