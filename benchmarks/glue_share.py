@@ -129,6 +129,7 @@ def main() -> None:
     line = re.compile(r"^\s*([\d.]+)%\s+(\S+)\s+\[.\]\s+(.*)$")
     shares: Counter[str] = Counter()
     lines: list[tuple[float, str, str]] = []
+    glue_by_lib: Counter[str] = Counter()
     for text in report.splitlines():
         m = line.match(text)
         if m:
@@ -136,6 +137,8 @@ def main() -> None:
             cat = classify(dso, sym)
             shares[cat] += pct
             lines.append((pct, cat, sym))
+            if cat == "glue":
+                glue_by_lib[dso] += pct
     total = sum(shares.values()) or 1.0
     if args.top:
         print(f"the {args.top} largest symbols:")
@@ -147,7 +150,9 @@ def main() -> None:
     )
     for cat in CATEGORIES:
         print(f"  {cat:15s} {100 * shares[cat] / total:5.1f} %")
-    print(f"glue share: {100 * shares['glue'] / total:.1f} %")
+    print(f"glue share: {100 * shares['glue'] / total:.1f} %, of which:")
+    for dso, pct in glue_by_lib.most_common(6):
+        print(f"  {dso:40.40s} {100 * pct / total:5.1f} %")
 
 
 if __name__ == "__main__":

@@ -54,7 +54,7 @@ Decomposition cod(const Matrix& Y, double rcond) {
 
 Decomposition svd(const Matrix& Y, double rcond) {
   const Eigen::Index k = Y.rows(), n = Y.cols();
-  Eigen::JacobiSVD<Matrix> s(Y, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::BDCSVD<Matrix> s(Y, Eigen::ComputeFullU | Eigen::ComputeFullV);
   const Vector& sv = s.singularValues();
   const int r = rank_of(sv, rcond);
   Decomposition d;
@@ -71,7 +71,7 @@ int psd_pinv(const Matrix& X, bool by_svd, double rcond, double scale, Matrix& o
   out.setZero(m, m);
   if (m == 0) return 0;
   if (by_svd) {
-    Eigen::JacobiSVD<Matrix> s(X, Eigen::ComputeFullU);
+    Eigen::BDCSVD<Matrix> s(X, Eigen::ComputeFullU);
     const int r = rank_of(s.singularValues(), rcond, scale);
     const auto U = s.matrixU().leftCols(r);
     out.noalias() = U * s.singularValues().head(r).cwiseInverse().asDiagonal() * U.transpose();
