@@ -303,3 +303,24 @@ def test_to_osf_s2_recognises_the_identical_weighting_config(tmp_path: Path) -> 
     assert table.frame.iloc[0]["status (priority; identical)"] == "ok; ok"
     assert "identical [10000000.0]" in " ".join(table.notes)
     assert "t = 9–19 s (the paper's window)" in " ".join(table.notes)
+
+
+def test_timing_tables_never_mix_impls() -> None:
+    from wbcbench.report.tables import _config, _one_impl, impl_note
+
+    runs = pd.DataFrame(
+        {
+            "controller": ["hqp", "to_osf", "to_osf"],
+            "impl": ["python", "native", "python"],
+            "controller_config": ["{}", '{"impl": "native"}', '{"impl": "python"}'],
+        }
+    )
+    # hqp has no native tick: the comparison is made on the Python path
+    both = _one_impl(runs)
+    assert list(both["impl"]) == ["python", "python"]
+    assert impl_note(both).startswith("Times of the Python path")
+    alone = _one_impl(runs[runs["controller"] == "to_osf"])
+    assert list(alone["impl"]) == ["native"]
+    assert impl_note(alone).startswith("Times of the native ticks")
+    # the impl is a column of its own, not part of the config a table selects on
+    assert [_config(r) for _, r in runs.iterrows()] == ["", "", ""]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -400,3 +401,27 @@ def test_a_store_repairs_what_a_kill_mid_write_leaves(tmp_path: Path) -> None:
     pd.testing.assert_frame_equal(a[err], b[err])
     mirror = pd.read_parquet(killed / "runs.parquet")
     assert len(mirror) == len(runs_b)
+
+
+def test_impls_run_each_impl_of_a_native_controller_once_and_a_python_one_once(
+    tmp_path: Path,
+) -> None:
+    path = write(
+        tmp_path,
+        "version: 1\ntiming:\n  - scenarios: [tocabi_stand_sway]\n"
+        "    controllers: [qp_wbc, hqp]\n    solvers: [daqp]\n    modes: [hot]\n"
+        "    impls: [native, python, default]\n",
+    )
+    configs = sorted(
+        (j.settings.controller, json.dumps(j.settings.controller_config)) for j in plan(path).jobs
+    )
+    assert configs == [
+        ("hqp", "{}"),
+        ("qp_wbc", '{"impl": "native"}'),
+        ("qp_wbc", '{"impl": "python"}'),
+        ("qp_wbc", "{}"),
+    ]
+    bad = write(tmp_path, "version: 1\ntiming:\n  - impls: [fast]\n", "bad.yaml")
+    with pytest.raises(ScenarioError) as err:
+        plan(bad)
+    assert "timing[0].impls[0]" in str(err.value) and "'native'" in str(err.value)

@@ -11,6 +11,7 @@ into closed-loop runs, each ``timing`` matrix into open-loop replay timing runs 
         controllers: ["*"]          # "*" = every controller that applies to the scenario
         solvers: [default]          # default | native | all | names | globs
         configs: {to_osf: [{}, {inverse: pinv}]}    # controller-config variants
+        impls: [native, python]     # both impls of the controllers that have a native tick
         set: ["duration=3"]         # scenario overrides for every scenario of the matrix
         robots: [tocabi_dof20, tocabi_dof45]    # one run per robot (override robot=<name>)
     timing:
@@ -43,6 +44,7 @@ from wbcbench.sim.closed_loop import RunSettings
 
 Tier = Literal["default", "low", "mid", "high"]
 Mode = Literal["cold", "warm", "hot"]
+Impl = Literal["default", "native", "python"]
 DEFAULT_SOLVER = "proxqp"
 SWEEP_DIR = Path(__file__).resolve().parents[2] / "sweeps"
 
@@ -87,6 +89,11 @@ class MatrixSpec(Strict):
         description="controller → list of config overrides; each is one run (replaces {})",
     )
     set: list[str] = Field(default_factory=list, description="KEY=VALUE for every scenario")
+    impls: list[Impl] = Field(
+        ["default"],
+        description="one run per impl of each controller that has a native tick (default: the "
+        "controller's own choice); a Python-only controller runs once",
+    )
     variants: list[list[str]] = Field([[]], description="further override sets, one run each")
     robots: list[str] = Field(
         default_factory=list,
@@ -388,6 +395,19 @@ def _config_variants(
     return variants
 
 
+def _impl_configs(impls: Sequence[str], controller: str) -> list[dict[str, str]]:
+    """The ``impl`` overrides of a controller for a matrix's ``impls`` (each once)."""
+    from wbcbench.controllers.registry import controller_class
+
+    has_native = controller_class(controller).has_native
+    out: list[dict[str, str]] = []
+    for impl in impls:
+        config = {"impl": impl} if impl != "default" and has_native else {}
+        if config not in out:
+            out.append(config)
+    return out
+
+
 def _check_config_keys(matrix: MatrixSpec, file: str, key: str) -> None:
     from wbcbench.controllers.registry import controller_class
 
@@ -527,7 +547,11 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                         if explicit:
                             not_applicable.append(f"{loaded.name} · {controller}: {reason}")
                         continue
-                    for config in _config_variants(matrix, controller, loaded, file, key):
+                    for config in [
+                        {**variant, **impl}
+                        for variant in _config_variants(matrix, controller, loaded, file, key)
+                        for impl in _impl_configs(matrix.impls, controller)
+                    ]:
                         for solver in solvers:
                             for tier in matrix.tiers:
                                 for mode in matrix.modes:

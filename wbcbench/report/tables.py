@@ -65,8 +65,19 @@ def _runs(res: Results, kind: str, scenario: str, controller: str | None = None)
 
 
 def _config(row: pd.Series) -> str:
+    """The row's controller config as JSON without its ``impl`` (the impl column says it), or
+    "" when nothing else is set."""
     cfg = row.get("controller_config", "{}")
-    return "" if pd.isna(cfg) or cfg == "{}" else str(cfg)
+    if pd.isna(cfg) or cfg in ("", "{}"):
+        return ""
+    try:
+        parsed = json.loads(str(cfg))
+    except ValueError:
+        return str(cfg)
+    if not isinstance(parsed, dict):
+        return str(cfg)
+    parsed.pop("impl", None)
+    return json.dumps(parsed, sort_keys=True) if parsed else ""
 
 
 def _has(row: pd.Series, word: str) -> bool:
@@ -81,13 +92,44 @@ def _recorder(row: pd.Series) -> str:
         return ""
 
 
+def _impl_of(runs: pd.DataFrame) -> pd.Series:
+    """Each row's impl (rows from before the impl column ran the Python path)."""
+    if "impl" not in runs.columns:
+        return pd.Series("python", index=runs.index)
+    impl = runs["impl"].astype(object).where(runs["impl"].notna(), "python").astype(str)
+    return impl.replace({"": "python", "nan": "python"})
+
+
+def _one_impl(runs: pd.DataFrame) -> pd.DataFrame:
+    """The rows of one impl, so that no ratio mixes them: native where every controller among
+    the rows has native ones, else python."""
+    if runs.empty:
+        return runs
+    impl = _impl_of(runs)
+    native = set(runs.loc[impl == "native", "controller"])
+    chosen = "native" if set(runs["controller"]) <= native else "python"
+    return runs[impl == chosen]
+
+
+def impl_note(runs: pd.DataFrame) -> str:
+    """The sentence a timing table carries about the impl its times come from."""
+    impls = sorted(set(_impl_of(runs))) if not runs.empty else []
+    if impls == ["native"]:
+        return "Times of the native ticks (`impl: native`), every controller on the same impl."
+    if impls == ["python"]:
+        return "Times of the Python path (`impl: python`), every controller on the same impl."
+    return f"Impls: {', '.join(impls) or 'none'}."
+
+
 def _pick_timing(
     runs: pd.DataFrame, paper_solver: str, recorder: str | None = None
 ) -> pd.DataFrame:
-    """One timing run per (scenario, robot, controller, config): paper's solver, else the
-    default; with ``recorder``, runs that replay that controller's recording first."""
+    """One timing run per (scenario, robot, controller, config), all of one impl (see
+    :func:`_one_impl`): paper's solver, else the default; with ``recorder``, runs that replay
+    that controller's recording first."""
     from wbcbench.bench.sweep import default_solver
 
+    runs = _one_impl(runs)
     if runs.empty:
         return runs
     prefer = [paper_solver.lower(), default_solver()]
@@ -105,8 +147,9 @@ def _pick_timing(
     if "robot" not in runs.columns:
         runs = runs.assign(robot="")
     runs = runs.sort_values("_rank", kind="stable")
-    key = ["scenario", "scenario_hash", "robot", "controller", "controller_config"]
-    return runs.drop_duplicates(key).drop(columns="_rank")
+    runs = runs.assign(_config=[_config(r) for _, r in runs.iterrows()])
+    key = ["scenario", "scenario_hash", "robot", "controller", "_config"]
+    return runs.drop_duplicates(key).drop(columns=["_rank", "_config"])
 
 
 @cache
@@ -229,7 +272,7 @@ def _ms(us: float) -> float:
 
 
 def _machines(res: Results, paper: str) -> str:
-    return f"Paper times: {P.PAPERS[paper].machine}. Our times: {res.machine} (Python)."
+    return f"Paper times: {P.PAPERS[paper].machine}. Our times: {res.machine}."
 
 
 # -- task matching for tracking tables
@@ -314,7 +357,7 @@ def to_osf_s1(res: Results) -> PaperTable:
             }
         )
     t.frame = pd.DataFrame(rows)
-    t.notes = [
+    t.notes += [
         f"Scenario `{run['scenario']}`, solver {run['solver']}, status {_run_status(run)}.",
         *_length_note(res, run, spec),
         "Paper: COMAN+ in V-REP/Vortex; ours: the COMAN+-like model in MuJoCo (soft contacts).",
@@ -387,7 +430,7 @@ def to_osf_pinv(res: Results) -> PaperTable:
         }
     )
     t.frame = pd.DataFrame(rows)
-    t.notes = [
+    t.notes += [
         f"Scenario `{a['scenario']}`, solver {a['solver']}; status: DC inverse "
         f"{_run_status(a)}, pinv {_run_status(b)}.",
         *_length_note(res, a, spec),
@@ -517,7 +560,7 @@ def to_osf_s2(res: Results) -> PaperTable:
         )
     t.frame = pd.DataFrame(rows)
     weights = {k: _weights(res, r) for k, r in (("priority", a), ("identical", b))}
-    t.notes = [
+    t.notes += [
         f"Scenario `{a['scenario']}`, solver {a['solver']}; weights: priority "
         f"{weights['priority']}, identical {weights['identical']}.",
         f"Amendments averaged over {how}; task errors are the runs' metrics window.",
@@ -534,6 +577,8 @@ def to_osf_s4(res: Results) -> PaperTable:
     runs = _runs(res, "timing", "lee2021access_s4*", "to_osf")
     runs = runs[[_config(r) == "" for _, r in runs.iterrows()]] if not runs.empty else runs
     runs = _pick_timing(runs, "qpoases")
+    if not runs.empty:
+        t.notes.append(impl_note(runs))
     if runs.empty:
         t.missing = "Run timing of `to_osf` on the `lee2021access_s4*` scenarios."
         return t
@@ -550,7 +595,7 @@ def to_osf_s4(res: Results) -> PaperTable:
             row[f"{stage} mean [ms]"] = _ms(_metric(res, r["run_id"], f"t_{stage}_mean_us"))
         rows.append(row)
     t.frame = pd.DataFrame(rows).sort_values(["contact DoF", "tasks"], kind="stable")
-    t.notes = [
+    t.notes += [
         "Paper: RT-thread QP < 0.5 ms up to 24 contact DoF; non-RT parameters < 2 ms (Fig. 14).",
         _machines(res, "to_osf"),
     ]
@@ -572,6 +617,8 @@ def to_osf_cod_svd(res: Results) -> PaperTable:
         None,
     )
     runs = _pick_timing(_runs(res, "timing", "lee2021access_*", "to_osf"), "qpoases")
+    if not runs.empty:
+        t.notes.append(impl_note(runs))
     if runs.empty:
         t.missing = (
             "Needs timing of `to_osf` with the default (COD) and an SVD inverse config on one "
@@ -612,7 +659,7 @@ def to_osf_cod_svd(res: Results) -> PaperTable:
         }
     )
     t.frame = pd.DataFrame(rows)
-    t.notes = [f"Scenario `{a['scenario']}`.", _machines(res, "to_osf")]
+    t.notes += [f"Scenario `{a['scenario']}`.", _machines(res, "to_osf")]
     return t
 
 
@@ -626,6 +673,8 @@ def to_osf_table3(res: Results) -> PaperTable:
         if not runs.empty
         else runs
     )
+    if not runs.empty:
+        t.notes.append(impl_note(runs))
     if runs.empty:
         t.missing = (
             "Run timing of `hqp` and `to_osf` on the `lee2021access_table3*` scenarios (1…5 tasks)."
@@ -641,7 +690,7 @@ def to_osf_table3(res: Results) -> PaperTable:
     if {"ours hqp [ms]", "ours to_osf [ms]"} <= set(frame.columns):
         frame["ours HQP / TO-OSF"] = frame["ours hqp [ms]"] / frame["ours to_osf [ms]"]
     t.frame = frame
-    t.notes = [P.TO_OSF_TABLE3_NOTE, _machines(res, "to_osf")]
+    t.notes += [P.TO_OSF_TABLE3_NOTE, _machines(res, "to_osf")]
     return t
 
 
@@ -655,7 +704,12 @@ def osf_hqp_table3(res: Results) -> PaperTable:
         "osf_hqp",
         None,
     )
-    runs = _pick_timing(_runs(res, "timing", "lee2021iros_table1*"), "qpoases")
+    runs = _runs(res, "timing", "lee2021iros_table1*")
+    if not runs.empty:
+        runs = runs[runs["controller"].isin(["hqp", "osf_hqp"])]
+    runs = _pick_timing(runs, "qpoases")
+    if not runs.empty:
+        t.notes.append(impl_note(runs))
     conv = runs[runs["controller"] == "hqp"] if not runs.empty else runs
     prop = runs[runs["controller"] == "osf_hqp"] if not runs.empty else runs
     if conv.empty or prop.empty:
@@ -737,7 +791,7 @@ def osf_hqp_table3(res: Results) -> PaperTable:
             }
         )
     t.frame = pd.DataFrame(rows)
-    t.notes = [
+    t.notes += [
         f"Means over the replayed ticks; solvers: conventional {c['solver']} ({c['mode']}), "
         f"OSF-HQP {p_run['solver']} ({p_run['mode']}). Per level: the whole call into our QP "
         "layer (validation, change detection, the solver's set-up or update, the native call); "
@@ -757,6 +811,8 @@ def osf_hqp_table2(res: Results) -> PaperTable:
         None,
     )
     runs = _pick_timing(_runs(res, "timing", "lee2021iros_table1*", "osf_hqp"), "qpoases")
+    if not runs.empty:
+        t.notes.append(impl_note(runs))
     runs = runs[[_config(r) == "" for _, r in runs.iterrows()]] if not runs.empty else runs
     if runs.empty:
         t.missing = "Run timing of `osf_hqp` on `lee2021iros_table1`."
@@ -774,7 +830,7 @@ def osf_hqp_table2(res: Results) -> PaperTable:
             )
         rows.append(row)
     t.frame = pd.DataFrame(rows)
-    t.notes = [
+    t.notes += [
         "Paper: the real robot (Table II); ours: replay of the simulated scenario.",
         _machines(res, "osf_hqp"),
     ]
@@ -816,6 +872,8 @@ def rc_lqp_table3(res: Results) -> PaperTable:
     if not runs.empty:
         runs = runs[[("dof" not in str(s)) for s in runs["scenario"]]]
         runs = _pick_timing(runs[runs["controller"].isin(["lqp", "rc_lqp"])], "osqp", "lqp")
+        if not runs.empty:
+            t.notes.append(impl_note(runs))
     if runs.empty:
         t.missing = (
             "Run timing of `lqp` and `rc_lqp` on the `ahn_*` double- and single-support scenarios "
@@ -858,7 +916,7 @@ def rc_lqp_table3(res: Results) -> PaperTable:
             )
         ratios.append(ratio)
     t.frame = pd.concat([frame, pd.DataFrame(ratios)], ignore_index=True)
-    t.notes = [
+    t.notes += [
         "Ratio rows are unitless (conventional / proposed, the paper's speed-up).",
         "Ours: means and maxima of the replayed ticks, the paper's solver (OSQP) when timed; "
         "dyn = the dynamics stage (+ the reduced-dynamics calculation for rc_lqp); LQP1 / LQP2 = "
@@ -882,6 +940,8 @@ def rc_lqp_dof(res: Results) -> PaperTable:
     runs = _runs(res, "timing", "ahn_*dof*")
     if not runs.empty:
         runs = _pick_timing(runs[runs["controller"].isin(["lqp", "rc_lqp"])], "osqp", "lqp")
+        if not runs.empty:
+            t.notes.append(impl_note(runs))
     if runs.empty:
         t.missing = (
             "Run timing of `lqp` and `rc_lqp` on `ahn_dof_scaling` for each robot of the DoF "
@@ -912,7 +972,7 @@ def rc_lqp_dof(res: Results) -> PaperTable:
     frame["paper ratio"] = frame["paper conventional [µs]"] / frame["paper proposed [µs]"]
     frame["ours ratio"] = frame["ours lqp median [µs]"] / frame["ours rc_lqp median [µs]"]
     t.frame = frame
-    t.notes = [
+    t.notes += [
         "Ratios: conventional (lqp) / proposed (rc_lqp). Ours: medians of the replayed ticks "
         "(whole step), the paper's solver (OSQP) when timed.",
         "The paper's text gives the 20 and 45 DoF end points (Fig. 5).",
@@ -947,7 +1007,7 @@ def rqr_fig1(res: Results) -> PaperTable:
             if algo != "reduced_qr":
                 frame[f"{algo} / reduced_qr"] = (wide[algo] / wide["reduced_qr"]).to_numpy()
     t.frame = frame
-    t.notes = [P.RQR_FIG1_NOTE, _machines(res, "rqr_hqp")]
+    t.notes += [P.RQR_FIG1_NOTE, _machines(res, "rqr_hqp")]
     return t
 
 
