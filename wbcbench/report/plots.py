@@ -98,12 +98,14 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
 
 def _timing_table(res: Results) -> pd.DataFrame:
     """Timing runs with their mean total and the scenario's size (tasks, contacts, DoF)."""
-    from wbcbench.report.tables import _robot_dof, scenario_spec
+    from wbcbench.report.tables import _impl_of, _robot_dof, scenario_spec
 
     runs = res.of_kind("timing")
     if runs.empty or res.metrics.empty:
         return pd.DataFrame()
     runs = runs[runs["robot"] != "-"]
+    # a controller's two impls are two series, never one
+    runs = runs.assign(impl=_impl_of(runs), series=runs["controller"] + " (" + _impl_of(runs) + ")")
     m = res.metrics[(res.metrics["task"] == "*")]
     med = m[m["metric"] == "t_total_median_us"].set_index("run_id")["value"]
     rows = []
@@ -140,9 +142,9 @@ def size_figures(res: Results, out: Path) -> list[Path]:
         (("tasks", "number of tasks"), ("contacts", "number of contacts"), ("dof", "actuated DoF")),
         strict=True,
     ):
-        for controller, g in t.groupby("controller"):
+        for name, g in t.groupby("series"):
             series = g.groupby(col)["median_us"].median().sort_index()
-            ax.plot(series.index, series.to_numpy() / 1e3, "o-", label=controller)
+            ax.plot(series.index, series.to_numpy() / 1e3, "o-", label=name)
         ax.set_xlabel(label)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("median step time [ms]")
@@ -181,7 +183,8 @@ def level_figure(res: Results, out: Path) -> list[Path]:
         ax.bar(labels, vals, bottom=bottom, label=level)
         bottom += vals
     ax.set_ylabel("mean QP time per level [ms]")
-    ax.set_title("Per-level QP solve time (stacked)", fontsize=10)
+    impl = ", ".join(sorted(set(picked["impl"].fillna("python")))) if "impl" in picked else "python"
+    ax.set_title(f"Per-level QP solve time (stacked; impl: {impl})", fontsize=10)
     ax.legend(fontsize=7, ncol=2)
     ax.tick_params(axis="x", labelsize=7)
     return _save(fig, out, "levels")
@@ -191,14 +194,14 @@ def timing_solver_figure(res: Results, out: Path) -> list[Path]:
     t = _timing_table(res)
     if t.empty:
         return []
-    t = t.assign(label=t["controller"] + " · " + t["mode"])
+    t = t.assign(label=t["series"] + " · " + t["mode"])
     pivot = (
         t.pivot_table(index="label", columns="solver", values="median_us", aggfunc="median") / 1e3
     )
     fig, ax = plt.subplots(figsize=(max(6, 0.9 * len(pivot) + 3), 3.6))
     pivot.plot.bar(ax=ax, logy=True)
     ax.set_ylabel("median step time [ms] (log)")
-    ax.set_xlabel("controller · mode")
+    ax.set_xlabel("controller (impl) · mode")
     ax.axhline(1.0, color="k", lw=0.8, ls="--", label="1 kHz budget")
     ax.set_title(
         "Open-loop replay: median step time per solver (median over scenarios)", fontsize=10
