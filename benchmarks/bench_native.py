@@ -52,6 +52,18 @@ def states_for(scenario: str, n: int, seed: int = 0) -> tuple[Any, list[tuple[An
     return (loaded, robot, keyframe), out
 
 
+def started_controller(
+    setup: tuple[Any, ...], name: str, solver: str, mode: str, impl: str, sets: dict[str, Any]
+) -> Any:
+    """The scenario's controller with its settings, ``sets`` on top, started at the keyframe."""
+    loaded, robot, keyframe = setup
+    ctx = scenario_context(loaded, robot, solver=solver, mode=mode)
+    config = {**controller_settings(loaded, name), **sets, "impl": impl}
+    controller = make_controller(name, ctx, config)
+    controller.start(RobotState(robot, *robot.keyframe(keyframe)))
+    return controller
+
+
 def run(
     setup: tuple[Any, ...],
     states: list[tuple[Any, ...]],
@@ -61,11 +73,8 @@ def run(
     impl: str,
     sets: dict[str, Any],
 ) -> dict[str, np.ndarray]:
-    loaded, robot, keyframe = setup
-    ctx = scenario_context(loaded, robot, solver=solver, mode=mode)
-    config = {**controller_settings(loaded, name), **sets, "impl": impl}
-    controller = make_controller(name, ctx, config)
-    controller.start(RobotState(robot, *robot.keyframe(keyframe)))
+    robot = setup[1]
+    controller = started_controller(setup, name, solver, mode, impl, sets)
     rows: dict[str, list[float]] = {}
     failures = 0
     for q, v, t in states:

@@ -54,19 +54,14 @@ def classify(dso: str, symbol: str) -> str:
 def inner(args: argparse.Namespace) -> None:
     """The child: the native tick's timed region, repeated."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_native import states_for
+    from bench_native import started_controller, states_for
 
     from wbcbench.controllers.native import NativeTimer
-    from wbcbench.controllers.registry import make_controller
     from wbcbench.dynamics.state import RobotState
-    from wbcbench.scenarios.load import controller_settings
-    from wbcbench.sim.setup import scenario_context
 
-    (loaded, robot, keyframe), states = states_for(args.scenario, args.states)
-    ctx = scenario_context(loaded, robot, solver=args.solver, mode="hot")
-    config = {**controller_settings(loaded, args.controller), "impl": "native"}
-    ctrl = make_controller(args.controller, ctx, config)
-    ctrl.start(RobotState(robot, *robot.keyframe(keyframe)))
+    setup, states = states_for(args.scenario, args.states)
+    robot = setup[1]
+    ctrl = started_controller(setup, args.controller, args.solver, "hot", "native", {})
     ctrl.step(RobotState(robot, *states[0][:2]), states[0][2])  # set-up done before sampling
     region = ctrl.native_region  # type: ignore[attr-defined]
     ctl, ack = os.environ["GLUE_CTL"], os.environ["GLUE_ACK"]

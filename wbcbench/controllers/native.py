@@ -187,6 +187,25 @@ def set_limits(settings: Any, tau_max: Any, Cw: Any, lw: Any, uw: Any, n_wrench:
     settings.uw = np.asarray(uw, dtype=float)
 
 
+#: why a tick whose build found a NaN failed
+NAN_MESSAGE = "the QP holds a NaN (state or references not finite)"
+
+
+def single_qp_region(
+    tick: Any, problem: Problem, solver: Any, q: Any, v: Any, t: float, timer: NativeTimer
+) -> str | None:
+    """The timed region of a native tick with one QP: build, solve through the lean path,
+    finish. Returns None, or the message of a failed tick."""
+    if not tick.build(q, v, t):
+        return NAN_MESSAGE
+    sol = solver.solve(problem, lean=True)
+    timer.add_solution(sol)
+    if not sol.success or sol.x is None:
+        return f"{sol.solver}: {sol.status.value}: {sol.message}"
+    tick.finish(sol.x)
+    return None
+
+
 def output(
     tick: Any,
     timer: NativeTimer,

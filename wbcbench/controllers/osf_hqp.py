@@ -88,7 +88,7 @@ class OsfHqp(OsfControllerBase):
         solvers = [*self.solvers, self.final_solver]
         used: list[Problem] = []
         if not tick.build(q, v, t):
-            return tick.message or "the QP holds a NaN (state or references not finite)", used
+            return tick.message or native.NAN_MESSAGE, used
         for i, problem in enumerate(self.problems):
             level = f"T{i + 1}" if i < L else "wrench"
             used.append(problem)
@@ -99,7 +99,7 @@ class OsfHqp(OsfControllerBase):
                 return f"{where}: {sol.solver}: {sol.status.value}: {sol.message}", used
             if i < L:
                 if not tick.level(i, sol.x):
-                    return "the QP holds a NaN (state or references not finite)", used
+                    return native.NAN_MESSAGE, used
             else:
                 tick.finish(sol.x)
         if len(self.problems) == L:

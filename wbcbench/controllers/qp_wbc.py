@@ -223,16 +223,8 @@ class QpWbc(Controller):
     ) -> str | None:
         """The timed region of a native step: build, solve through the lean path, finish.
         Returns None, or the message of a failed tick."""
-        tick, problem = self.native_tick, self.problem
-        assert problem is not None
-        if not tick.build(q, v, t):
-            return "the QP holds a NaN (state or references not finite)"
-        sol = self.solver.solve(problem, lean=True)
-        timer.add_solution(sol)
-        if not sol.success or sol.x is None:
-            return f"{sol.solver}: {sol.status.value}: {sol.message}"
-        tick.finish(sol.x)
-        return None
+        assert self.problem is not None
+        return native.single_qp_region(self.native_tick, self.problem, self.solver, q, v, t, timer)
 
     def _step_native(self, state: RobotState, t: float) -> ControlOutput:
         """The same step on the native tick (see :meth:`native_region`)."""

@@ -105,7 +105,8 @@ def _timing_table(res: Results) -> pd.DataFrame:
         return pd.DataFrame()
     runs = runs[runs["robot"] != "-"]
     # a controller's two impls are two series, never one
-    runs = runs.assign(impl=_impl_of(runs), series=runs["controller"] + " (" + _impl_of(runs) + ")")
+    impl = _impl_of(runs)
+    runs = runs.assign(impl=impl, series=runs["controller"] + " (" + impl + ")")
     m = res.metrics[(res.metrics["task"] == "*")]
     med = m[m["metric"] == "t_total_median_us"].set_index("run_id")["value"]
     rows = []
@@ -165,7 +166,7 @@ def level_figure(res: Results, out: Path) -> list[Path]:
     m = m[m["task"] != "*"]
     if m.empty:
         return []
-    from wbcbench.report.tables import _pick_timing
+    from wbcbench.report.tables import _impl_of, _pick_timing
 
     picked = _pick_timing(runs[runs["run_id"].isin(m["run_id"])], "qpoases")
     m = m[m["run_id"].isin(picked["run_id"])]
@@ -183,7 +184,7 @@ def level_figure(res: Results, out: Path) -> list[Path]:
         ax.bar(labels, vals, bottom=bottom, label=level)
         bottom += vals
     ax.set_ylabel("mean QP time per level [ms]")
-    impl = ", ".join(sorted(set(picked["impl"].fillna("python")))) if "impl" in picked else "python"
+    impl = ", ".join(sorted(set(_impl_of(picked))))
     ax.set_title(f"Per-level QP solve time (stacked; impl: {impl})", fontsize=10)
     ax.legend(fontsize=7, ncol=2)
     ax.tick_params(axis="x", labelsize=7)
