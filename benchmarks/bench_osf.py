@@ -65,15 +65,15 @@ def medians(
     return out
 
 
+@functools.cache
 def table3_iros(solver: str = SOLVER, impl: str = "native") -> dict[str, dict[str, float]]:
-    """Table III's controllers on the same states; osf_hqp in the given impl (hqp has only
-    the Python one)."""
+    """Table III's controllers on the same states, both in the given impl."""
     loaded, rec = recording("lee2021iros_table1", 3.0, 4.0)
     osf = {"params": "inline", "impl": impl}
     return {
         "osf_hqp_cod": medians(loaded, rec, "osf_hqp", osf, solver),
         "osf_hqp_svd": medians(loaded, rec, "osf_hqp", {**osf, "inverse": "svd"}, solver),
-        "hqp": medians(loaded, rec, "hqp", {"finals": ["wrench"]}, solver),
+        "hqp": medians(loaded, rec, "hqp", {"finals": ["wrench"], "impl": impl}, solver),
     }
 
 
@@ -174,11 +174,10 @@ STAGES = [
 ]  # fmt: skip
 
 
-def main() -> None:
-    print(f"load average {os.getloadavg()[0]:.2f} (2-core machine: compare within one run)")
-    t = table3_iros(impl="python")
+def table3_iros_table(t: dict[str, dict[str, float]], solver: str, impl: str) -> None:
+    """OSF-HQP Table III: per level, the QP total and the full step, beside the paper's."""
     o, h = t["osf_hqp_cod"], t["hqp"]
-    print("OSF-HQP Table III (TOCABI-like, same recorded states, daqp, both impl: python)")
+    print(f"OSF-HQP Table III (TOCABI-like, same recorded states, {solver}, both impl: {impl})")
     print(f"{'level':<8} {'hqp':>9} {'osf_hqp':>9} {'ratio':>7}   paper conv / proposed [ms]")
     for lv in ("T1", "T2", "T3", "T4", "wrench"):
         hk = "solve.wrench" if lv == "wrench" else f"solve.L{lv[1:]}"
@@ -191,14 +190,25 @@ def main() -> None:
         "   9.263 / 0.303 (30.5x)"
     )
     print(
-        f"full step: hqp {h['total']:.1f} µs, osf_hqp {o['total']:.1f} µs, ratio "
-        f"{h['total'] / o['total']:.1f} (paper 9.8x, osf 0.94 ms)"
+        f"full step: hqp {h['total']:.1f} µs (p99 {h['total.p99']:.1f}), osf_hqp "
+        f"{o['total']:.1f} µs (p99 {o['total.p99']:.1f}), ratio {h['total'] / o['total']:.1f} "
+        "(paper 9.8x, osf 0.94 ms)"
     )
     print(
         f"QP time without our Python layer (set-up + native call): hqp {native(h):.1f} µs, "
         f"osf_hqp {native(o):.1f} µs, ratio {native(h) / native(o):.1f}"
     )
     print(f"failures: hqp {h['failures']:.0f}, osf_hqp {o['failures']:.0f}")
+    print()
+
+
+def main() -> None:
+    print(f"load average {os.getloadavg()[0]:.2f} (2-core machine: compare within one run)")
+    for solver in ("daqp", "qpoases"):
+        if solver not in available_solvers():
+            continue
+        for impl in ("python", "native"):
+            table3_iros_table(table3_iros(solver, impl), solver, impl)
     print()
     for solver in ("daqp", "qpoases"):
         if solver not in available_solvers():
@@ -214,16 +224,21 @@ def main() -> None:
                 f"{r['osf_hqp_cod']['failures']:.0f}"
             )
         print()
-    print("Table III QP-time ratio hqp / osf_hqp by backend (same states, impl: python)")
-    print(f"{'backend':<10} {'hqp':>9} {'osf_hqp':>9} {'ratio':>6} {'native':>7}  failures")
+    print("Table III hqp / osf_hqp by backend (same states, impl: native): QP time, solver's")
+    print("own share (set-up + native call), full step [µs]")
+    print(
+        f"{'backend':<10} {'hqp QP':>9} {'osf QP':>9} {'ratio':>6} {'own':>6}"
+        f" {'hqp step':>9} {'osf step':>9} {'ratio':>6}  failures"
+    )
     for solver in COMPARE:
         if solver not in available_solvers():
             continue
-        r = table3_iros(solver, "python")
+        r = table3_iros(solver, "native")
         h, o = r["hqp"], r["osf_hqp_cod"]
         print(
             f"{solver:<10} {h['solve']:9.1f} {o['solve']:9.1f} {h['solve'] / o['solve']:6.1f}"
-            f" {native(h) / native(o):7.1f}  hqp {h['failures']:.0f}, osf_hqp {o['failures']:.0f}"
+            f" {native(h) / native(o):6.1f} {h['total']:9.1f} {o['total']:9.1f}"
+            f" {h['total'] / o['total']:6.1f}  hqp {h['failures']:.0f}, osf_hqp {o['failures']:.0f}"
         )
     print()
     s4 = scenario4()

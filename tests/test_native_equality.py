@@ -78,12 +78,14 @@ TIER_EPS = TIERS_EPS["high"]
 ITERATIVE = {"osqp": 1e-4, "clarabel": 3e-5, "piqp": 3e-5, "proxqp": 2e-4, "highs": 3e-5}
 
 
-def build_pair(name: str, scenario: str, solver: str, config: dict[str, Any]) -> dict[str, Any]:
+def build_pair(
+    name: str, scenario: str, solver: str, config: dict[str, Any], tier: str = "high"
+) -> dict[str, Any]:
     loaded = load_scenario(scenario)
     robot = load_robot(loaded.spec.robot)
     out: dict[str, Any] = {"robot": robot, "loaded": loaded}
     for impl in ("python", "native"):
-        ctx = scenario_context(loaded, robot, solver=solver, tier="high", keep_problems=True)
+        ctx = scenario_context(loaded, robot, solver=solver, tier=tier, keep_problems=True)
         out[impl] = make_controller(name, ctx, {**config, "impl": impl})
     return out
 
@@ -237,9 +239,9 @@ def test_impl_is_chosen_and_checked() -> None:
     robot = load_robot(loaded.spec.robot)
     ctx = scenario_context(loaded, robot, solver="daqp")
     assert make_controller("qp_wbc", ctx).impl == "native"
-    assert make_controller("hqp", ctx).impl == "python"
+    assert make_controller("rc_lqp", ctx).impl == "python"
     with pytest.raises(Exception, match="'python'"):
-        make_controller("hqp", ctx, {"impl": "native"})
+        make_controller("rc_lqp", ctx, {"impl": "native"})
 
 
 def test_impl_default_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -250,7 +252,7 @@ def test_impl_default_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> N
     assert make_controller("to_osf", ctx).impl == "python"
     assert make_controller("to_osf", ctx, {"impl": "native"}).impl == "native"
     monkeypatch.setenv("WBCBENCH_IMPL", "native")
-    assert make_controller("hqp", ctx).impl == "python"  # no native tick: its only impl
+    assert make_controller("rc_lqp", ctx).impl == "python"  # no native tick: its only impl
     monkeypatch.setenv("WBCBENCH_IMPL", "fast")
     with pytest.raises(ControllerError) as err:
         make_controller("to_osf", ctx)

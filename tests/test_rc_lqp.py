@@ -280,7 +280,7 @@ def test_rc_lqp_falls_back_to_the_full_model_when_the_replan_misses(tocabi: Robo
     from tests.conftest import grounded_state
 
     ctrl = make(RcLqp, RcLqpConfig(), "tocabi_stand_sway", tocabi)
-    full = make(Lqp, LqpConfig(), "tocabi_stand_sway", tocabi)
+    full = make(Lqp, LqpConfig(impl="python"), "tocabi_stand_sway", tocabi)  # as the fallback
     rng = np.random.default_rng(2026)
     fallbacks = 0
     for _ in range(30):

@@ -27,17 +27,19 @@ Strategies (see :mod:`wbcbench.qp.hierarchy`): ``cascade`` (the papers' conventi
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import scipy.linalg
 from pydantic import Field
 
+from wbcbench.controllers import native
 from wbcbench.controllers.base import (
     Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
+    NativeConfig,
     StageTimer,
 )
 from wbcbench.dynamics.state import RobotState
@@ -50,7 +52,7 @@ from wbcbench.tasks.tasks import JointPostureTask, TaskTerm
 Final = Literal["torque", "wrench", "acceleration_energy", "zero_torque_energy"]
 
 
-class HqpConfig(ControllerConfig):
+class HqpConfig(NativeConfig):
     """Settings of the conventional HQP."""
 
     strategy: Literal["cascade", "nullspace", "weighted", "rqr"] = Field(
@@ -83,7 +85,21 @@ class Hqp(Controller):
     name = "hqp"
     summary = "conventional HQP: one QP per priority over (q̈, Γ, f); cascade/nullspace/rqr"
     Config = HqpConfig
+    has_native = True
     config: HqpConfig
+
+    @classmethod
+    def impl_for(cls, config: ControllerConfig) -> str:
+        """``rqr`` solves no QPs and has no native tick: it runs the Python reference unless
+        native is asked for explicitly, which is an error."""
+        if getattr(config, "strategy", None) == "rqr":
+            if config.impl == "native":
+                raise ControllerError(
+                    "hqp: strategy rqr has no native tick; valid choices with impl: native: "
+                    "cascade, nullspace, weighted (or impl: python)"
+                )
+            return "python"
+        return super().impl_for(config)
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -105,6 +121,69 @@ class Hqp(Controller):
         self.solvers = (
             [] if self.config.strategy == "rqr" else [ctx.new_solver() for _ in range(n_qp)]
         )
+        self.native_tick: Any = None  # made at start() once the tasks are started
+        self.native_solve: native.LevelSolve | None = None
+
+    def start(self, state: RobotState) -> None:
+        super().start(state)
+        if self.impl == "native":
+            self.make_native()
+
+    def make_native(self) -> None:
+        """The native tick, from the started tasks."""
+        cfg = self.config
+        tasks = self.ctx.tasks
+        core = native.core()
+        tick = native.new_tick("HqpTick", self.ctx.robot, tasks, list(self.frames))
+        s = core.HqpSettings()
+        s.strategy = getattr(core.Strategy, cfg.strategy)
+        s.finals = [getattr(core.HqpFinal, name) for name in cfg.finals]
+        s.wrench_weights = np.asarray(cfg.wrench_weights, dtype=float)
+        s.prox = cfg.prox
+        s.level_weights = list(cfg.level_weights)
+        s.priorities = self.priorities
+        s.groups = [[i for i, t in enumerate(tasks) if t.priority == p] for p in self.priorities]
+        s.force_level = [task.level == "force" for task in tasks]
+        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+        tick.configure(s)
+        self.native_tick = tick
+        self.native_solve = native.LevelSolve(
+            lambda pool, i: tick.slot(i), [self.solvers], self.ctx.keep_problems
+        )
+
+    def native_region(
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
+    ) -> str | None:
+        """The timed region of a native step: the whole hierarchy, its QPs through the lean
+        path. Returns None, or the message of a failed tick."""
+        assert self.native_solve is not None
+        self.native_solve.start(timer)
+        if self.native_tick.run(q, v, t, self.native_solve):
+            return None
+        return "hqp: " + self.native_solve.message(self.native_tick.result.failed_level)
+
+    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
+        """The same step on the native tick (see :meth:`native_region`)."""
+        if self.native_tick is None:
+            self.make_native()
+        assert self.native_solve is not None
+        timer = native.NativeTimer()
+        message = self.native_region(state.q, state.v, t, timer)
+        timer.stop()
+        tick = self.native_tick
+        terms = native.task_terms(self.ctx.tasks, tick.tasks)
+        result = tick.result
+        diagnostics = self._diagnostics(result.levels[: len(self.priorities)], result.retries)
+        return native.output(tick, timer, terms, self.native_solve.kept, message, diagnostics)
+
+    @staticmethod
+    def _diagnostics(levels: list[Any], retries: int) -> dict[str, float]:
+        """‖(w, v)‖ of each priority level and the proximal retries."""
+        out = {
+            f"slack.{lv.name}": float(np.linalg.norm(np.concatenate([lv.w, lv.v]))) for lv in levels
+        }
+        out["prox_retries"] = float(retries)
+        return out
 
     # -- formulation ----------------------------------------------------------------------
 
@@ -181,6 +260,8 @@ class Hqp(Controller):
     # -- the step -----------------------------------------------------------------------------
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
+        if self.impl == "native":
+            return self._step_native(state, t)
         timer = StageTimer(state)
         n, k = state.n, state.k
         terms = self.evaluate_tasks(state, t)
@@ -196,11 +277,7 @@ class Hqp(Controller):
             timer=timer,
             prox=self.config.prox,
         )
-        diagnostics = {
-            f"slack.{lv.name}": float(np.linalg.norm(np.concatenate([lv.w, lv.v])))
-            for lv in result.levels[: len(levels)]
-        }
-        diagnostics["prox_retries"] = float(result.retries)
+        diagnostics = self._diagnostics(result.levels[: len(levels)], result.retries)
         if not result.ok:
             return ControlOutput(
                 tau=np.zeros(k),

@@ -30,16 +30,18 @@ f is the reaction on the robot (see :mod:`wbcbench.dynamics.state`): the paper's
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field
 
+from wbcbench.controllers import native
 from wbcbench.controllers.base import (
     Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
+    NativeConfig,
     StageTimer,
 )
 from wbcbench.dynamics.dense import spd_factor
@@ -89,7 +91,7 @@ class LexicographicConfig(ControllerConfig):
     )
 
 
-class LqpConfig(LexicographicConfig):
+class LqpConfig(NativeConfig, LexicographicConfig):
     """Settings of the conventional LQP."""
 
 
@@ -118,6 +120,27 @@ def level_weight(weights: list[float], i: int) -> float:
     return weights[min(i, len(weights) - 1)]
 
 
+def priority_groups(tasks: list[Any]) -> tuple[list[int], list[list[int]]]:
+    """The distinct priorities, highest (1) first, and the indices of each one's tasks (in the
+    scenario's order): the grouping of :func:`task_levels`, handed to a native tick once."""
+    priorities = sorted({task.priority for task in tasks})
+    groups = [[i for i, task in enumerate(tasks) if task.priority == p] for p in priorities]
+    return priorities, groups
+
+
+def lexicographic_settings(cfg: LexicographicConfig, tasks: list[Any]) -> Any:
+    """The native settings both LQPs share, from the Python config."""
+    s = native.core().LexicographicSettings()
+    s.strategy = getattr(native.core().Strategy, cfg.strategy)
+    s.qdd_limit = cfg.qdd_limit
+    s.wrench_regularization = cfg.wrench_regularization
+    s.prox = cfg.prox
+    s.final_weight = cfg.final_weight
+    s.weights = list(cfg.weights)
+    s.priorities, s.groups = priority_groups(tasks)
+    return s
+
+
 class SolverPool:
     """Solver handles for the QPs of one hierarchy, created on first use and kept across ticks
     (hot solvers keep one problem structure each)."""
@@ -132,7 +155,7 @@ class SolverPool:
         return self.handles[:count]
 
 
-def slack_diagnostics(result: HierarchyResult, prefix: str = "") -> dict[str, float]:
+def slack_diagnostics(result: Any, prefix: str = "") -> dict[str, float]:
     """‖w‖ and ‖v‖ of every level (the optimal slacks: 0 when the level is met)."""
     out: dict[str, float] = {}
     for lv in result.levels:
@@ -181,6 +204,7 @@ class Lqp(Controller):
     )
     Config = LqpConfig
     reference_solvers = ("quadprog",)
+    has_native = True
     config: LqpConfig
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
@@ -191,6 +215,58 @@ class Lqp(Controller):
         self.pool = SolverPool(ctx)
         self.last: HierarchyResult | None = None
         self.last_output: ControlOutput | None = None
+        self.native_tick: Any = None  # made at start() once the tasks are started
+        self.native_solve: native.LevelSolve | None = None
+
+    def start(self, state: RobotState) -> None:
+        super().start(state)
+        if self.impl == "native":
+            self.make_native()
+
+    def make_native(self) -> None:
+        """The native tick, from the started tasks."""
+        tasks = self.ctx.tasks
+        tick = native.new_tick("LqpTick", self.ctx.robot, tasks, list(self.frames))
+        s = lexicographic_settings(self.config, tasks)
+        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+        tick.configure(s)
+        self.native_tick = tick
+        self.native_solve = native.LevelSolve(
+            lambda pool, i: tick.slot(i), [self.pool.get(tick.handles)], self.ctx.keep_problems
+        )
+
+    def native_region(
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
+    ) -> str | None:
+        """The timed region of a native step: the whole hierarchy, its QPs through the lean
+        path. Returns None, or the message of a failed tick."""
+        assert self.native_solve is not None
+        self.native_solve.start(timer)
+        if self.native_tick.run(q, v, t, self.native_solve):
+            return None
+        return self.native_solve.message(self.native_tick.result.failed_level)
+
+    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
+        """The same step on the native tick (see :meth:`native_region`)."""
+        if self.native_tick is None:
+            self.make_native()
+        assert self.native_solve is not None
+        timer = native.NativeTimer()
+        message = self.native_region(state.q, state.v, t, timer)
+        timer.stop()
+        tick = self.native_tick
+        terms = native.task_terms(self.ctx.tasks, tick.tasks)
+        if message is not None:
+            n, k = state.n, state.k
+            return failed_output(
+                n, k, self.nc, terms, timer.finish(tick), message, self.last_output
+            )
+        result = tick.result
+        diagnostics = {**slack_diagnostics(result), "prox_retries": float(result.retries)}
+        self.last_output = native.output(
+            tick, timer, terms, self.native_solve.kept, None, diagnostics
+        )
+        return self.last_output
 
     def hierarchy(
         self, state: RobotState, terms: list[TaskTerm]
@@ -240,6 +316,8 @@ class Lqp(Controller):
         return dyn, levels, final, G, gamma
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
+        if self.impl == "native":
+            return self._step_native(state, t)
         timer = StageTimer(state)
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc

@@ -206,6 +206,59 @@ def single_qp_region(
     return None
 
 
+class LevelSolve:
+    """The solve callback of a native hierarchy: the native side assembles a level's QP into
+    one of its slots and calls this with ``(pool, handle, slot, reshaped, level)``; the QP goes
+    through the lean path of handle ``handle`` of pool ``pool`` (each of the controller's
+    hierarchies has its own handles), its solution is recorded in the tick's timer, and
+    ``(x, z)`` (None on failure) goes back.
+
+    The slot's Problem view is made once and re-made only when the native side re-made the
+    slot's buffers (a size changed: ``reshaped``).
+    """
+
+    def __init__(self, slots: Any, pools: list[list[Any]], keep: bool = False) -> None:
+        self.slots = slots  # (pool, slot) -> the native QpBuffers
+        self.pools = pools
+        self.keep = keep
+        self.views: dict[tuple[int, int], Problem] = {}
+        self.timer: SolveTimes | None = None
+        self.failed: Any = None
+        self.kept: list[Problem] = []
+
+    def start(self, timer: SolveTimes) -> None:
+        """Before a tick: the timer its solutions go to."""
+        self.timer = timer
+        self.failed = None
+        self.kept = []
+
+    def __call__(
+        self, pool: int, handle: int, slot: int, reshaped: bool, level: str
+    ) -> tuple[Any, Any] | None:
+        problem = self.views.get((pool, slot))
+        if problem is None or reshaped:
+            problem = qp_view(self.slots(pool, slot), level)
+            self.views[(pool, slot)] = problem
+        sol = self.pools[pool][handle].solve(problem, lean=True)
+        if self.timer is not None:
+            self.timer.add_solution(sol, level)
+        if self.keep:
+            self.kept.append(frozen(problem))
+        if not sol.success or sol.x is None:
+            self.failed = sol
+            return None
+        return sol.x, sol.z
+
+    def message(self, level: str) -> str:
+        """Why the level's QP failed, as the Python hierarchy says it."""
+        sol = self.failed
+        if sol is None:
+            return NAN_MESSAGE
+        if level == "weighted":
+            return f"weighted: {sol.status}: {sol.message}"
+        return f"level {level!r}: {sol.solver}: {sol.status}: {sol.message}"
+
+
 def output(
     tick: Any,
     timer: NativeTimer,

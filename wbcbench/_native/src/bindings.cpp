@@ -9,4 +9,5 @@ NB_MODULE(_core, m) {
   wbcbench::bind_dynamics(m);
   wbcbench::bind_controllers(m);
   wbcbench::bind_osf(m);
+  wbcbench::bind_hierarchy(m);
 }

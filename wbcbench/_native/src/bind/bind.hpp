@@ -14,5 +14,6 @@ constexpr auto kView = nb::rv_policy::reference_internal;
 void bind_dynamics(nb::module_& m);
 void bind_controllers(nb::module_& m);
 void bind_osf(nb::module_& m);
+void bind_hierarchy(nb::module_& m);
 
 }  // namespace wbcbench

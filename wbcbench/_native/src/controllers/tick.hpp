@@ -9,24 +9,10 @@
 #include <vector>
 
 #include "dynamics/state.hpp"
+#include "qp/buffers.hpp"
 #include "tasks/tasks.hpp"
 
 namespace wbcbench {
-
-using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-
-// One QP in the form of wbcbench.qp.Problem, in buffers sized once:
-//   minimise ½ xᵀ H x + gᵀ x  s.t.  A x = b,  l ≤ C x ≤ u,  lb ≤ x ≤ ub.
-// Row-major, so that the NumPy views the solvers read are C-contiguous.
-struct QpBuffers {
-  RowMatrix H, A, C;
-  Vector g, b, l, u, lb, ub;
-  bool has_box = false;
-
-  void resize(int n, int n_eq, int n_in, bool box);
-  // every entry finite except ±inf bounds (a NaN anywhere is a failed tick, not a solve)
-  bool finite() const;
-};
 
 // Seconds per stage of the last tick, the names of the Python path's StageTimer.
 struct StageTimes {

@@ -1,0 +1,234 @@
+"""The native hierarchy and its controllers (``hqp``, ``lqp``) equal the Python reference.
+
+The engine first: on random hierarchies with conflicting levels, active inequalities and a
+hard box, every strategy with every shortcut (merged finals, levels held hard when feasible,
+slack-free first tries, proximal retry) gives the Python reference's solution and slacks.
+
+Then the controllers, on the states of :mod:`tests.test_native_equality` (perturbed keyframes
+in double support, single support, a hand on a wall, a force-level task), for every installed
+backend. A hierarchy's optimum is unique (the last level's energy is strictly convex), but the
+map from data to optimum is badly conditioned: the two Python strategies that define the same
+optimum (cascade and null-space) differ by up to 0.3 relative on these states, from rounding
+and the solvers' tolerances alone, and the null-space bases of the two impls differ the same
+way. So, on each state both impls solve:
+
+* every level's optimal slack norms agree (the lexicographic objective: well conditioned),
+  to 3e-6 relative with an active-set backend and 1e-3 with an iterative one;
+* the native answer is what it must be: the floating-base dynamics met and the torques within
+  their limits;
+* with an active-set backend, τ, q̈ and f agree to 10 times the spread the Python strategies
+  show on the same states (at least 1e-8), wherever the other strategy solves; an iterative
+  backend's answers move with its stopping point, which the slacks and the checks above bound.
+
+A backend may fail on a state in one impl and not the other, or at another level (rounding-
+level differences of the data meet its stopping rule differently; DAQP declares a level QP that
+the levels above leave feasible only to rounding infeasible in one impl and not the other): at
+most two of the four states.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from wbcbench import _native
+from wbcbench.controllers import native
+from wbcbench.dynamics.state import RobotState
+from wbcbench.qp import available_solvers, make_solver
+from wbcbench.qp.hierarchy import solve_hierarchy
+
+from .conftest import grounded_state
+from .test_hierarchy import random_hierarchy
+from .test_native_equality import CASES, build_pair, relative
+
+pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
+
+STRATEGIES = ("cascade", "nullspace", "weighted")
+
+
+def native_hierarchy(hard: Any, levels: list[Any], finals: list[Any]) -> tuple[Any, list[Any]]:
+    """The Python hierarchy's data as the native engine takes them."""
+    core = native.core()
+    h = core.HardConstraints()
+    h.A, h.b, h.C, h.l, h.u = hard.A, hard.b, hard.C, hard.l, hard.u
+    if hard.lb is not None:
+        h.lb, h.ub = hard.lb, hard.ub
+    soft = []
+    for lv in [*levels, *(f.as_level() for f in finals)]:
+        lv = lv.prepared(hard.n)
+        p = core.PriorityLevel()
+        p.name, p.A, p.b, p.C, p.l, p.u = lv.name, lv.A, lv.b, lv.C, lv.l, lv.u
+        p.weight, p.hard_if_feasible = lv.weight, lv.hard_if_feasible
+        soft.append(p)
+    return h, soft
+
+
+@pytest.mark.parametrize("strategy", STRATEGIES)
+@pytest.mark.parametrize("shortcuts", ["none", "merge", "slack_free", "both"])
+@pytest.mark.parametrize("solver", ["daqp", "quadprog"])
+def test_engine_equals_python(strategy: str, shortcuts: str, solver: str) -> None:
+    merge = shortcuts in ("merge", "both")
+    slack_free = shortcuts in ("slack_free", "both")
+    core = native.core()
+    for seed in range(6):
+        for active in (False, True):
+            hard, levels, finals = random_hierarchy(seed, active=active)
+            levels[0].hard_if_feasible = seed % 2 == 1
+            n_handles = 2 * (len(levels) + len(finals))
+            python = solve_hierarchy(
+                hard,
+                levels,
+                finals,
+                strategy,
+                [make_solver(solver, tier="high") for _ in range(n_handles)],
+                prox=1e-8,
+                merge_finals=merge,
+                slack_free_first=slack_free,
+            )
+            engine = core.Hierarchy(0)
+            handles = [make_solver(solver, tier="high") for _ in range(n_handles)]
+            solve = native.LevelSolve(lambda pool, i, e=engine: e.slot(i), [handles])
+            options = core.HierarchyOptions()
+            options.strategy = getattr(core.Strategy, strategy)
+            options.prox, options.merge_finals = 1e-8, merge
+            options.slack_free_first, options.handles = slack_free, n_handles
+            data = native_hierarchy(hard, levels, finals)
+            result = engine.solve(*data, len(finals), options, solve)
+            assert result.ok == python.ok
+            assert relative(result.x, python.x) <= 1e-7, (seed, active)
+            assert [lv.name for lv in result.levels] == [lv.name for lv in python.levels]
+            for a, b in zip(result.levels, python.levels, strict=True):
+                assert relative(a.w, b.w) <= 1e-7 and relative(a.v, b.v) <= 1e-7, a.name
+
+
+def test_engine_failure_names_the_level() -> None:
+    core = native.core()
+    hard, levels, finals = random_hierarchy(0)
+    engine = core.Hierarchy(0)
+    calls: list[tuple[int, int, str]] = []
+
+    def fail(pool: int, handle: int, slot: int, reshaped: bool, level: str) -> None:
+        calls.append((pool, handle, level))
+        return None
+
+    options = core.HierarchyOptions()
+    options.strategy, options.prox, options.handles = core.Strategy.cascade, 1e-8, 4
+    result = engine.solve(*native_hierarchy(hard, levels, finals), 1, options, fail)
+    assert not result.ok and result.failed_level == "L1"
+    # the bare QP, then its proximal retry, both with the level's handle
+    assert calls == [(0, 0, "L1"), (0, 0, "L1")]
+    assert result.retries == 1
+    options.handles = 1  # fewer handles than QPs
+    with pytest.raises(ValueError, match="one solver handle per level"):
+        engine.solve(*native_hierarchy(hard, levels, finals), 1, options, fail)
+
+
+#: the controllers and the settings each is compared in; the strategy whose Python answer
+#: measures the spread
+CONTROLLERS: list[tuple[str, dict[str, Any], str]] = [
+    ("lqp", {"strategy": "nullspace"}, "cascade"),
+    ("lqp", {"strategy": "cascade"}, "nullspace"),
+    ("hqp", {"strategy": "cascade", "finals": ["torque"]}, "nullspace"),
+    ("hqp", {"strategy": "nullspace", "finals": ["wrench", "zero_torque_energy"]}, "cascade"),
+]
+ACTIVE_SET = {"quadprog", "qpoases", "daqp"}
+#: (controller, backend) → cases where the backend runs for tens of seconds per state in either
+#: impl (OSQP and HiGHS at tier high to their caps on these semidefinite level QPs; ProxQP,
+#: which has no time cap, for minutes on the HQP's wall states); the rest of its cases run
+SLOW: dict[tuple[str, str], set[str]] = {
+    ("lqp", "osqp"): {"double", "force_level", "wall"},
+    ("lqp", "highs"): {"double", "force_level"},
+    ("hqp", "osqp"): set(CASES),
+    ("hqp", "highs"): {"double", "force_level"},
+    ("hqp", "proxqp"): {"wall"},
+}
+
+
+def slacks(diagnostics: dict[str, float]) -> dict[str, float]:
+    return {k: v for k, v in diagnostics.items() if k.startswith(("w.", "v.", "slack."))}
+
+
+def base_residual(robot: Any, q: np.ndarray, v: np.ndarray, out: Any, frames: list[str]) -> float:
+    """Relative residual of the floating-base rows of M q̈ + h = Sᵀ τ + J_cᵀ f."""
+    state = RobotState(robot, q, v)
+    full = state.M @ out.qdd + state.h - state.contact_jacobian(frames).T @ out.wrench
+    return float(np.abs(full[:6]).max() / max(1.0, np.abs(state.h[:6]).max()))
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.parametrize("solver", available_solvers())
+@pytest.mark.parametrize(
+    "name,config,other",
+    CONTROLLERS,
+    ids=lambda x: x if isinstance(x, str) else "-".join(map(str, x.values())),
+)
+def test_native_equals_python(
+    name: str, config: dict[str, Any], other: str, solver: str, case: str
+) -> None:
+    backend = solver.removeprefix("qpsolvers:")
+    if case in SLOW.get((name, backend), set()):
+        pytest.skip(f"{backend} runs for tens of seconds per state here in either impl")
+    scenario, keyframe = CASES[case]
+    pair = build_pair(name, scenario, solver, config)
+    robot, loaded = pair["robot"], pair["loaded"]
+    python, nat = pair["python"], pair["native"]
+    exact = backend in ACTIVE_SET
+    spread_ref = build_pair(name, scenario, solver, {**config, "strategy": other})["python"]
+    frames = python.ctx.contact_frames
+    q0, v0 = robot.keyframe(keyframe)
+    for c in (python, nat, spread_ref):
+        c.start(RobotState(robot, q0, v0))
+    rng = np.random.default_rng(7)
+    window = loaded.spec.metrics.window or (0.0, loaded.spec.duration)
+    compared: list[float] = []
+    spread, mismatched, spread_known = 0.0, 0, False
+    for _ in range(4):
+        q, v = grounded_state(robot, keyframe, frames, rng, q_noise=0.05, v_noise=0.2)
+        t = float(rng.uniform(*window))
+        a = nat.step(RobotState(robot, q, v), t)
+        b = python.step(RobotState(robot, q, v), t)
+        assert {"dynamics", "build", "solve", "crossing", "total"} <= set(a.timings)
+        if a.ok != b.ok:
+            mismatched += 1
+            assert mismatched <= 2, (a.message, b.message)
+            continue
+        if not b.ok:
+            continue
+        assert slacks(a.diagnostics).keys() == slacks(b.diagnostics).keys()
+        for key, value in slacks(b.diagnostics).items():
+            tol = 3e-6 if exact else 1e-3
+            assert abs(a.diagnostics[key] - value) <= tol * max(1.0, abs(value)), key
+        # the native answer is what it must be: the floating-base rows met, torques in limits
+        assert base_residual(robot, q, v, a, frames) <= 1e-6
+        assert np.all(np.abs(a.tau) <= nat.ctx.tau_max * (1 + 1e-6) + 1e-6)
+        if exact:
+            c = spread_ref.step(RobotState(robot, q, v), t)
+            if c.ok:
+                spread_known = True
+                spread = max(spread, relative(c.tau, b.tau), relative(c.qdd, b.qdd))
+            pairs = zip((a.tau, a.qdd, a.wrench), (b.tau, b.qdd, b.wrench), strict=True)
+            compared.append(max(relative(x, y) for x, y in pairs))
+    if spread_known:  # (the other strategy may fail on every state with some backends)
+        for diff in compared:
+            assert diff <= max(1e-8, 10 * spread), (diff, spread)
+
+
+def test_rqr_has_no_native_tick() -> None:
+    from wbcbench.controllers.registry import make_controller
+    from wbcbench.errors import ControllerError
+    from wbcbench.robots.loader import load_robot
+    from wbcbench.scenarios.load import load_scenario
+    from wbcbench.sim.setup import scenario_context
+
+    loaded = load_scenario("tocabi_stand_sway")
+    ctx = scenario_context(loaded, load_robot(loaded.spec.robot), solver="daqp")
+    assert make_controller("hqp", ctx, {"strategy": "rqr"}).impl == "python"
+    assert make_controller("hqp", ctx, {"strategy": "cascade"}).impl == "native"
+    with pytest.raises(ControllerError) as err:
+        make_controller("hqp", ctx, {"strategy": "rqr", "impl": "native"})
+    assert str(err.value) == (
+        "hqp: strategy rqr has no native tick; valid choices with impl: native: cascade, "
+        "nullspace, weighted (or impl: python)"
+    )
