@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from wbcbench import _native
-from wbcbench.dynamics.chains import ChainSplit, split_chains
+from wbcbench.dynamics.chains import split_chains
 from wbcbench.dynamics.reduced import ReducedDynamics, ReducedModel
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.library import TOCABI_DOF_FAMILY
@@ -17,6 +17,11 @@ from .conftest import random_standing_state
 pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
 
 TOL = 1e-10
+#: the quantities that go through (J_r M⁻¹ J_rᵀ)⁻¹: rounding there grows with its condition
+#: number κ, so they are compared to max(TOL, κ · 1e-16); κ stays below 1e6 on the bundled robots
+#: (the tolerance is TOL there) but reaches 1e9 on tocabi_dof20, whose 8-DoF chain has a nearly
+#: rank-deficient J_G at some states
+CONDITIONED = ("M_r", "b_r", "g_r", "Jbar_r")
 DOUBLE, SINGLE = ("l_sole", "r_sole"), ("l_sole",)
 QUANTITIES = "J_r dJr_v M_r b_r g_r Jbar_r J_cr J_G dJG_v M_uc b_uc g_uc M_uc_factor".split()
 CHAIN_QUANTITIES = ("A_G", "I_G", "J_G", "drift", "mass", "com", "R")
@@ -26,9 +31,14 @@ def relative(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.abs(np.asarray(a) - b), initial=0.0) / max(1.0, np.abs(b).max()))
 
 
-def assert_equal_models(native: object, python: ReducedModel, fixed_base: bool) -> float:
-    """Every quantity of ``native`` against ``python``; returns the worst relative error."""
-    worst = 0.0
+def conditioned_tolerance(python: ReducedModel) -> float:
+    """max(TOL, κ · 1e-16), κ the condition number of M_r (that of J_r M⁻¹ J_rᵀ)."""
+    return max(TOL, float(np.linalg.cond(python.M_r)) * 1e-16)
+
+
+def assert_equal_models(native: object, python: ReducedModel, fixed_base: bool) -> None:
+    """Every quantity of ``native`` against ``python``."""
+    tol_r = conditioned_tolerance(python)
     for name in QUANTITIES:
         a, b = np.asarray(getattr(native, name)), getattr(python, name)
         assert a.shape == b.shape, name
@@ -36,8 +46,7 @@ def assert_equal_models(native: object, python: ReducedModel, fixed_base: bool) 
             assert np.isnan(a).all() and np.isnan(b).all()
             continue
         err = relative(a, b)
-        assert err <= TOL, (name, err)
-        worst = max(worst, err)
+        assert err <= (tol_r if name in CONDITIONED else TOL), (name, err)
     M_r = np.asarray(native.M_r)  # type: ignore[attr-defined]
     assert np.array_equal(M_r, M_r.T)
     for i, chain in enumerate(python.chains):
@@ -46,11 +55,12 @@ def assert_equal_models(native: object, python: ReducedModel, fixed_base: bool) 
             a, b = np.asarray(getattr(centroid, name)), np.asarray(getattr(chain, name))
             assert a.shape == b.shape, (i, name)
             assert relative(a, b) <= TOL, (i, name, relative(a, b))
-    return worst
 
 
-def check_robot(robot: Robot, frames: tuple[str, ...], n_states: int = 8) -> ChainSplit:
-    """Native vs Python at random perturbed states, fixed_base on and off, tasks included."""
+def check_robot(robot: Robot, frames: tuple[str, ...], n_states: int = 8) -> float:
+    """Native vs Python at random perturbed states, fixed_base on and off, tasks included.
+
+    Returns the largest tolerance the conditioned quantities were given."""
     split = split_chains(robot.pin_model, frames)
     reference = ReducedDynamics(robot.pin_model, split)
     native = _native.reduced_dynamics(robot, split, ["pelvis"])
@@ -58,6 +68,7 @@ def check_robot(robot: Robot, frames: tuple[str, ...], n_states: int = 8) -> Cha
     assert native.n_chains == len(split.chains)
     assert np.array_equal(native.unconstrained, split.unconstrained)
     rng = np.random.default_rng(17)
+    tol_r = TOL
     for k in range(n_states):
         q, v = random_standing_state(robot, rng, q_noise=0.1, v_noise=0.5)
         native.dynamics.update(q, v)
@@ -68,6 +79,7 @@ def check_robot(robot: Robot, frames: tuple[str, ...], n_states: int = 8) -> Cha
             state = RobotState(robot, q, v)
             red = reference.compute(state, fixed_base=fixed_base)
             assert_equal_models(native, red, fixed_base)
+        tol_r = max(tol_r, conditioned_tolerance(red))
         # eq. (22) and §3.4.1 on a reducible task (the CoM), a chain's hand and random rows
         tasks = {
             "com": (state.J_com, state.com_drift),
@@ -79,32 +91,35 @@ def check_robot(robot: Robot, frames: tuple[str, ...], n_states: int = 8) -> Cha
         for name, (J, drift) in tasks.items():
             Jr, drift_r = native.task(J, drift)
             Jr_ref, drift_ref = red.task(J, drift)
-            assert relative(Jr, Jr_ref) <= TOL, name
-            assert relative(drift_r, drift_ref) <= TOL, name
+            assert relative(Jr, Jr_ref) <= conditioned_tolerance(red), name
+            assert relative(drift_r, drift_ref) <= conditioned_tolerance(red), name
             mask = native.reducible_rows(J)
             assert mask.dtype == bool and np.array_equal(mask, red.reducible_rows(J)), name
         if k == 0:
             assert native.reducible_rows(state.J_com).all()
             if "r_hand" in tasks:
                 assert not native.reducible_rows(tasks["r_hand"][0]).any()
-    return split
+    return tol_r
 
 
 @pytest.mark.parametrize("frames", [DOUBLE, SINGLE], ids=["double", "single"])
 def test_every_quantity_equals_the_reference(robot: Robot, frames: tuple[str, ...]) -> None:
-    check_robot(robot, frames)
+    assert check_robot(robot, frames) == TOL
 
 
 def test_a_hand_contact_with_an_overlapping_waist(comanplus: Robot) -> None:
     # the chain hangs from the waist, not from the base: its parent body's axes differ
-    split = check_robot(comanplus, ("l_sole", "r_sole", "l_palm"), n_states=4)
-    assert split.chains[0].parent_joint != 1
+    frames = ("l_sole", "r_sole", "l_palm")
+    assert split_chains(comanplus.pin_model, frames).chains[0].parent_joint != 1
+    assert check_robot(comanplus, frames, n_states=4) == TOL
 
 
 @pytest.mark.parametrize("dof", [d for d in TOCABI_DOF_FAMILY if d != 33])
 def test_dof_family(dof: int) -> None:
-    split = check_robot(load_robot(f"tocabi_dof{dof}"), DOUBLE, n_states=4)
-    assert split.unconstrained.size == dof - 12
+    robot = load_robot(f"tocabi_dof{dof}")
+    assert split_chains(robot.pin_model, DOUBLE).unconstrained.size == dof - 12
+    tol_r = check_robot(robot, DOUBLE, n_states=6)
+    assert tol_r == TOL or dof == 20
 
 
 def test_shared_dynamics_and_bad_input(tocabi: Robot) -> None:
