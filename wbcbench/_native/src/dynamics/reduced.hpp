@@ -56,13 +56,16 @@ struct ChainCentroid {
 // Mirrors ReducedDynamics + ReducedModel. n_r = n_plain + 6 · n_chains; n_uc = Σ n_u.
 class ReducedDynamics {
  public:
-  // dyn must outlive this object, compute M⁻¹ (set_inverse(true)) and have the split's
-  // contact frames; split must be a partition of dyn's velocity indices. Throws
-  // std::invalid_argument otherwise.
+  // dyn must outlive this object and have the split's contact frames; split must be a
+  // partition of dyn's velocity indices with valid joint ids. Throws std::invalid_argument
+  // otherwise.
   ReducedDynamics(RobotDynamics& dyn, SplitSpec split);
 
   // Every quantity below at dyn's last update(); fixed_base adds eq. (17)'s b_uc (one more
-  // RNEA), else b_uc is NaN. Returns the time it took [s] (also time()).
+  // RNEA), else b_uc is NaN. Returns the time it took [s] (also time()). Throws
+  // std::logic_error when dyn does not compute M⁻¹ (set_inverse(false)) and
+  // std::runtime_error when J_r M⁻¹ J_rᵀ or M_uc is not positive definite (e.g. before the
+  // first update()).
   double compute(bool fixed_base);
 
   // A task J q̈ + J̇ q̇ in the reduced space (eq. 22): Jr = J J̄_r (m, n_r) and
