@@ -9,7 +9,10 @@ everything runs on the Python path.
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from wbcbench.dynamics.chains import ChainSplit
 
 _core: Any
 try:
@@ -47,3 +50,39 @@ def robot_dynamics(robot: Any, task_frames: list[str], contact_frames: list[str]
     if _core is None:
         raise RuntimeError(f"the native module is {REASON}")
     return _core.RobotDynamics(robot.pin_model.saveToString(), task_frames, contact_frames)
+
+
+def split_spec(split: ChainSplit) -> Any:
+    """The native :class:`SplitSpec` of a :class:`~wbcbench.dynamics.chains.ChainSplit`: its
+    contact frames, plain coordinates and, per chain, velocity indices, root and parent joints
+    (the chain split itself is computed in Python, once)."""
+    if _core is None:
+        raise RuntimeError(f"the native module is {REASON}")
+    spec = _core.SplitSpec()
+    spec.contact_frames = list(split.contact_frames)
+    spec.plain = split.plain.tolist()
+    chains = []
+    for chain in split.chains:
+        native = _core.ChainSpec()
+        native.idx = chain.idx.tolist()
+        native.root_joints = list(chain.root_joints)
+        native.parent_joint = chain.parent_joint
+        chains.append(native)
+    spec.chains = chains
+    return spec
+
+
+def reduced_dynamics(
+    robot: Any, split: ChainSplit, task_frames: list[str] | None = None, dynamics: Any = None
+) -> Any:
+    """A native :class:`ReducedDynamics` for ``robot`` and ``split`` (the mirror of
+    :class:`wbcbench.dynamics.reduced.ReducedDynamics`).
+
+    It reads a native :class:`RobotDynamics` with the split's contact frames: ``dynamics`` when
+    given (to share one with the rest of a tick), else a new one with ``task_frames``; either
+    is its ``dynamics`` attribute. Per tick: ``reduced.dynamics.update(q, v)``, then
+    ``reduced.compute(fixed_base)``.
+    """
+    if dynamics is None:
+        dynamics = robot_dynamics(robot, task_frames or [], list(split.contact_frames))
+    return _core.ReducedDynamics(dynamics, split_spec(split))

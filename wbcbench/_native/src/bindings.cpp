@@ -7,6 +7,7 @@ NB_MODULE(_core, m) {
   m.attr("compiler") = WBCBENCH_COMPILER;
   m.attr("cxx_flags") = WBCBENCH_CXX_FLAGS;
   wbcbench::bind_dynamics(m);
+  wbcbench::bind_reduced(m);
   wbcbench::bind_controllers(m);
   wbcbench::bind_osf(m);
   wbcbench::bind_hierarchy(m);

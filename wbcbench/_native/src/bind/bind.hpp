@@ -12,6 +12,7 @@ namespace nb = nanobind;
 constexpr auto kView = nb::rv_policy::reference_internal;
 
 void bind_dynamics(nb::module_& m);
+void bind_reduced(nb::module_& m);
 void bind_controllers(nb::module_& m);
 void bind_osf(nb::module_& m);
 void bind_hierarchy(nb::module_& m);

@@ -20,6 +20,7 @@ void bind_dynamics(nb::module_& m) {
       .def_prop_ro("nv", &RobotDynamics::nv)
       .def_prop_ro("mass", &RobotDynamics::mass)
       .def_prop_ro("joint_names", &RobotDynamics::joint_names)
+      .def_prop_ro("contact_frames", &RobotDynamics::contact_frames)
       .def_prop_ro("M", &RobotDynamics::M, kView)
       .def_prop_ro("Minv", &RobotDynamics::Minv, kView)
       .def_prop_ro("h", &RobotDynamics::h, kView)

@@ -1,6 +1,7 @@
 // The one translation unit that includes Pinocchio's algorithms (they are costly to compile).
 #include "dynamics/state.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/center-of-mass.hpp>
@@ -8,6 +9,7 @@
 #include <pinocchio/algorithm/compute-all-terms.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 #include <pinocchio/serialization.hpp>
 #include <stdexcept>
@@ -19,7 +21,13 @@ namespace pin = pinocchio;
 struct RobotDynamics::Impl {
   pin::Model model;
   std::unique_ptr<pin::Data> data;
+  // the second Data: ReducedDynamics' relative passes (momentum_rate, nonlinear_effects)
+  std::unique_ptr<pin::Data> relative;
+  // data.oYcrb as computeAllTerms leaves it (the composite inertias; computeMinverse
+  // overwrites them with the bodies' own)
+  decltype(pin::Data::oYcrb) composite;
   std::vector<pin::FrameIndex> task_ids, contact_ids;
+  std::vector<std::string> contact_names;
   // q, v, a as Pinocchio's own vector type, and a 6×n Jacobian: with these argument types the
   // calls below use libpinocchio_default's precompiled algorithms (other types would
   // instantiate the templates here, unoptimised for the model at hand)
@@ -39,6 +47,9 @@ RobotDynamics::RobotDynamics(const std::string& model,
   impl_->model.loadFromString(model);
   const pin::Model& m = impl_->model;
   impl_->data = std::make_unique<pin::Data>(m);
+  impl_->relative = std::make_unique<pin::Data>(m);
+  impl_->composite = impl_->data->oYcrb;
+  impl_->contact_names = contact_frames;
   for (const auto& f : task_frames) impl_->task_ids.push_back(frame_index(m, f));
   for (const auto& f : contact_frames) impl_->contact_ids.push_back(frame_index(m, f));
   const int nv = m.nv;
@@ -73,6 +84,47 @@ std::vector<std::string> RobotDynamics::joint_names() const {
   return std::vector<std::string>(impl_->model.names.begin(), impl_->model.names.end());
 }
 
+int RobotDynamics::njoints() const { return impl_->model.njoints; }
+const Vector& RobotDynamics::v() const { return impl_->v; }
+const std::vector<std::string>& RobotDynamics::contact_frames() const {
+  return impl_->contact_names;
+}
+
+static void check_joint(const pin::Model& m, int joint) {
+  if (joint < 0 || joint >= m.njoints)
+    throw std::out_of_range("joint id " + std::to_string(joint) + " out of range [0, " +
+                            std::to_string(m.njoints) + ")");
+}
+
+Eigen::Matrix3d RobotDynamics::joint_rotation(int joint) const {
+  check_joint(impl_->model, joint);
+  return impl_->data->oMi[joint].rotation();
+}
+
+void RobotDynamics::subtree_inertia(const std::vector<int>& roots, double& mass,
+                                    Eigen::Vector3d& com, Eigen::Matrix3d& inertia) const {
+  if (roots.empty()) throw std::invalid_argument("subtree_inertia: no root joint");
+  for (int r : roots) check_joint(impl_->model, r);
+  const auto& oYcrb = impl_->composite;
+  pin::Inertia Y = oYcrb[roots[0]];
+  for (size_t i = 1; i < roots.size(); ++i) Y = Y + oYcrb[roots[i]];
+  mass = Y.mass();
+  com = Y.lever();
+  inertia = Y.inertia().matrix();
+}
+
+Eigen::Matrix<double, 6, 1> RobotDynamics::momentum_rate(const Eigen::Ref<const Vector>& v_rel) {
+  if (v_rel.size() != impl_->model.nv) throw std::invalid_argument("v_rel of wrong size");
+  return pin::computeCentroidalMomentumTimeVariation(impl_->model, *impl_->relative, impl_->q,
+                                                     v_rel, impl_->a0)
+      .toVector();
+}
+
+const Vector& RobotDynamics::nonlinear_effects(const Eigen::Ref<const Vector>& v_rel) {
+  if (v_rel.size() != impl_->model.nv) throw std::invalid_argument("v_rel of wrong size");
+  return pin::nonLinearEffects(impl_->model, *impl_->relative, impl_->q, v_rel);
+}
+
 double RobotDynamics::update(const Eigen::Ref<const Vector>& q_in,
                              const Eigen::Ref<const Vector>& v_in) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -86,6 +138,7 @@ double RobotDynamics::update(const Eigen::Ref<const Vector>& q_in,
   const Vector& v = impl_->v;
   // RobotState._terms: kinematics, M, nonlinear effects, gravity, Jacobians, CoM, CMM
   pin::computeAllTerms(m, d, q, v);
+  std::copy(d.oYcrb.begin(), d.oYcrb.end(), impl_->composite.begin());
   pin::updateFramePlacements(m, d);
   // RobotState._drifts: second-order kinematics at zero q̈ (data.a) and the CoM drift
   pin::centerOfMass(m, d, q, v, impl_->a0, false);

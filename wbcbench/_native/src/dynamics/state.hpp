@@ -52,6 +52,30 @@ class RobotDynamics {
   // whether update() also computes M⁻¹ (on by default; controllers that never read it turn
   // it off, as RobotState computes it only when asked)
   void set_inverse(bool on) { with_inverse_ = on; }
+  bool inverse() const { return with_inverse_; }
+
+  // -- What ReducedDynamics (dynamics/reduced.hpp) needs from Pinocchio, kept here so that
+  // Pinocchio's headers stay in state.cpp. The relative passes run on a second Pinocchio Data
+  // that this object owns: the first stays as update() left it. Not reentrant: one thread at
+  // a time, like update().
+  int njoints() const;                              // Pinocchio joints, the universe included
+  const Vector& v() const;                          // v of the last update()
+  const std::vector<std::string>& contact_frames() const;
+  // The summed composite inertia (data.oYcrb after computeAllTerms; computeMinverse then
+  // overwrites it, so update() keeps a copy) of the subtrees rooted at `roots` (Pinocchio
+  // joint ids) at the last update(): mass [kg], CoM (3,) and rotational inertia about that
+  // CoM (3, 3) in world axes. Summed as pin.Inertia's `+`.
+  void subtree_inertia(const std::vector<int>& roots, double& mass, Eigen::Vector3d& com,
+                       Eigen::Matrix3d& inertia) const;
+  // World rotation of joint `joint`'s frame (data.oMi) at the last update().
+  Eigen::Matrix3d joint_rotation(int joint) const;
+  // Rate of the centroidal momentum [linear; angular] (6,) [N, N·m] about the robot's CoM at
+  // the last update()'s q, velocity v_rel (nv,) and zero q̈
+  // (computeCentroidalMomentumTimeVariation on the second Data).
+  Eigen::Matrix<double, 6, 1> momentum_rate(const Eigen::Ref<const Vector>& v_rel);
+  // Nonlinear effects (Coriolis, centrifugal and gravity) (nv,) at the last update()'s q and
+  // velocity v_rel: one RNEA on the second Data; the reference is valid until the next call.
+  const Vector& nonlinear_effects(const Eigen::Ref<const Vector>& v_rel);
 
  private:
   struct Impl;  // Pinocchio's model and data: only state.cpp includes Pinocchio
