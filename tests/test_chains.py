@@ -142,3 +142,18 @@ def test_chain_drift_is_the_relative_momentum_rate(name: str, frames: tuple[str,
     c = builder.compute(RobotState(robot, q, v_rel)).chains[0]
     predicted = c.I_G @ (c.J_G @ a_rel[chain.idx] + c.drift)
     assert np.abs(fd - predicted).max() <= 1e-6 * max(1.0, float(np.abs(fd).max()))
+
+
+def test_reduced_model_does_not_depend_on_what_was_computed_first(tocabi: Robot) -> None:
+    """M⁻¹ reuses Pinocchio's subtree-inertia buffer: a reduced model computed after it must be
+    the one computed before it."""
+    split = split_chains(tocabi.pin_model, ["l_sole", "r_sole"])
+    reduced = ReducedDynamics(tocabi.pin_model, split)
+    q, v = tocabi.keyframe("stand")
+    v = np.random.default_rng(3).uniform(-0.3, 0.3, tocabi.nv)
+    first = reduced.compute(RobotState(tocabi, q, v))
+    after_minv = RobotState(tocabi, q, v)
+    after_minv.Minv  # noqa: B018 - computed first on purpose
+    second = reduced.compute(after_minv)
+    for name in ("M_r", "b_r", "g_r", "J_r", "Jbar_r", "J_G"):
+        np.testing.assert_allclose(getattr(second, name), getattr(first, name), rtol=0, atol=1e-9)

@@ -163,7 +163,7 @@ class ReducedDynamics:
         model, data = self.model, self._data
         n_p = self._plain.size
         cmm, com = state.cmm, state.com
-        oYcrb = state.data.oYcrb
+        oYcrb = state.subtree_inertias
         oMi = state.data.oMi
         # relative motion of the chains: base and constraint chain frozen
         v_rel = self._v_rel

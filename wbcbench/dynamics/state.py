@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
@@ -58,6 +58,7 @@ class RobotState:
     _cache: dict[object, np.ndarray] = field(init=False, repr=False, default_factory=dict)
     _terms_done: bool = field(init=False, default=False, repr=False)
     _drift_done: bool = field(init=False, default=False, repr=False)
+    _subtree_inertias_valid: bool = field(init=False, default=True, repr=False)
 
     def __post_init__(self) -> None:
         self.q = np.ascontiguousarray(self.q, dtype=float)
@@ -154,9 +155,27 @@ class RobotState:
 
         def compute() -> np.ndarray:
             pin.computeMinverse(self.model, self._data, self.q)
+            # (it reuses data.oYcrb as its own workspace: see subtree_inertias)
+            self._subtree_inertias_valid = False
             return _symmetrize_upper(self._data.Minv)
 
         return self._cached("Minv", compute)
+
+    @property
+    def subtree_inertias(self) -> Any:
+        """Pinocchio's ``data.oYcrb``: the inertia of each joint's subtree, in world axes.
+
+        Read it here, not from :attr:`data`: computing M⁻¹ overwrites that buffer with each
+        body's own inertia, so after :attr:`Minv` it no longer holds the subtrees (the CRBA
+        pass then runs again, in the convention computeAllTerms uses).
+        """
+        self._terms()
+        if not self._subtree_inertias_valid:
+            t0 = time.perf_counter()
+            pin.crba(self.model, self._data, self.q, pin.Convention.WORLD)
+            self._subtree_inertias_valid = True
+            self.compute_time += time.perf_counter() - t0
+        return self._data.oYcrb
 
     @property
     def h(self) -> np.ndarray:
