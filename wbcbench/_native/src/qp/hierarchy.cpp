@@ -30,8 +30,8 @@ int qr_rank(const Eigen::ColPivHouseholderQR<Matrix>& qr, double tol) {
 
 // Null-space projector I − Rᵀ R of A (n, n).
 Matrix null_projector(const Matrix& A) {
-  Matrix R, Z;
-  row_space_and_null_space(A, R, Z);
+  Matrix R;
+  row_space_and_null_space(A, &R, nullptr);
   Matrix P = -R.transpose() * R;
   P.diagonal().array() += 1.0;
   return P;
@@ -144,18 +144,31 @@ Matrix vstack(const std::vector<const Matrix*>& blocks, Index n) {
 
 }  // namespace
 
-void row_space_and_null_space(const Matrix& E, Matrix& R, Matrix& Z, double tol) {
+void row_space_and_null_space(const Matrix& E, Matrix* R, Matrix* Z, double tol) {
   const Index n = E.cols();
   if (E.rows() == 0 || n == 0) {  // (an empty factorisation)
-    R.setZero(0, n);
-    Z.setIdentity(n, n);
+    if (R) R->setZero(0, n);
+    if (Z) Z->setIdentity(n, n);
     return;
   }
   Eigen::ColPivHouseholderQR<Matrix> qr(E.transpose());
   const int rank = qr_rank(qr, tol);
-  const Matrix Q = qr.householderQ();
-  R = Q.leftCols(rank).transpose();
-  Z = Q.rightCols(n - rank);
+  // only the columns of Q asked for: the reflectors applied to the identity's columns
+  if (R) {
+    Matrix Q1 = Matrix::Identity(n, rank);
+    Q1.applyOnTheLeft(qr.householderQ());
+    *R = Q1.transpose();
+  }
+  if (Z) {
+    Matrix Q2 = Matrix::Zero(n, n - rank);
+    Q2.bottomRows(n - rank).setIdentity();
+    Q2.applyOnTheLeft(qr.householderQ());
+    *Z = std::move(Q2);
+  }
+}
+
+void row_space_and_null_space(const Matrix& E, Matrix& R, Matrix& Z, double tol) {
+  row_space_and_null_space(E, &R, &Z, tol);
 }
 
 QpBuffers& Hierarchy::prepare(int handle, int kind, int n, int n_eq, int n_in, bool box) {
@@ -267,8 +280,8 @@ Hierarchy::Answer Hierarchy::cascade_level(const HardConstraints& hard, const Pr
   if (prox) {
     // regularise only the feasible directions (those the held equalities leave free) that
     // the level's objective does not see
-    Matrix Rf, Zf;
-    row_space_and_null_space(vstack({&hard.A, &E}, n), Rf, Zf);
+    Matrix Zf;
+    row_space_and_null_space(vstack({&hard.A, &E}, n), nullptr, &Zf);
     const Matrix P = Zf * null_projector(lv.A * Zf) * Zf.transpose();
     qp.H.topLeftCorner(n, n) = prox * P;
     qp.g.head(n).noalias() = -prox * (P * center);
@@ -399,7 +412,7 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
   HierarchyResult out;
   Vector x;
   bool has_x = false;
-  Matrix Eb(0, n), unused;
+  Matrix Eb(0, n);
   Vector e(0);
   // one factorisation of the hard equalities: bases and the minimum-norm solution x_p
   Matrix R_hard, Z;
@@ -426,8 +439,8 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
     prev_hi_.push_back(lv.u + res.v);
   };
   auto eliminate = [&](const Matrix& A) {  // Z ← Z Z_l, Z_l a null-space basis of A Z
-    Matrix Rl, Zl;
-    row_space_and_null_space(A * Z, Rl, Zl);
+    Matrix Zl;
+    row_space_and_null_space(A * Z, nullptr, &Zl);
     Z = Z * Zl;
   };
 
@@ -489,7 +502,7 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
       const Matrix E = vstack(held_rows, n);
       // only the part of the held rows not already fixed by the hard equalities, so that
       // [hard A; E] keeps full row rank
-      row_space_and_null_space(E - (E * R_hard.transpose()) * R_hard, Eb, unused);
+      row_space_and_null_space(E - (E * R_hard.transpose()) * R_hard, &Eb, nullptr);
       e = has_x ? Vector(Eb * x) : Vector(0);
     }
     const Vector center = has_x ? x : x_p;

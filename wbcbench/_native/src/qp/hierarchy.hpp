@@ -136,5 +136,7 @@ class Hierarchy {
 // Orthonormal bases (R (rank, n), Z (n, n − rank)) of the row space and null space of E (p, n),
 // from a column-pivoted Householder QR of Eᵀ; rank counts |R_ii| > tol · max(1, |R_00|).
 void row_space_and_null_space(const Matrix& E, Matrix& R, Matrix& Z, double tol = 1e-10);
+// The same, forming only the bases asked for (nullptr: not needed).
+void row_space_and_null_space(const Matrix& E, Matrix* R, Matrix* Z, double tol = 1e-10);
 
 }  // namespace wbcbench
