@@ -49,7 +49,9 @@ BACKENDS: dict[str, BackendEntry] = {
 
 #: name → a backend at a paper's fixed settings. Listed by ``all`` and by name, not by
 #: ``native`` (which means "every library once").
-NAMED_SETTINGS: dict[str, BackendEntry] = {}
+NAMED_SETTINGS: dict[str, BackendEntry] = {
+    "osqp_libdwbc": BackendEntry("wbcbench.qp.backends.osqp_libdwbc", "OSQPLibdwbcSolver", "osqp"),
+}
 
 QPSOLVERS_PREFIX = "qpsolvers:"
 
