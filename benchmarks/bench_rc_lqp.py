@@ -10,13 +10,24 @@ paper's Table 3: total mean ("avg") and max, the reduced-dynamics calculation ("
 The DoF series (Fig. 5) replays ``scenarios/ahn_dof_scaling.yaml`` with ``robot`` overridden
 per member of the TOCABI-like family.
 
+Solver settings: the paper's library runs OSQP its own way — warm-started, eps_abs = eps_rel =
+1e-3, alpha = 1.0, its Hessian and constraint matrix re-sent every tick — which is the named
+setting ``osqp_libdwbc`` (:mod:`wbcbench.qp.backends.osqp_libdwbc`); ``osqp`` hot is OSQP the
+way a modern backend runs it (solver defaults, only the changed data sent). The tables run both,
+and a side-by-side table puts the paper's way next to the modern way, per-tick iterations and
+rc_lqp's re-plans / full-model fallbacks included.
+
 Run with ``make bench-micro`` (pytest-benchmark cases) or ``python benchmarks/bench_rc_lqp.py``
-for the tables (OSQP, the paper's solver, and the fastest installed backend).
+for the tables (the paper's setting, OSQP hot and the fastest installed backend);
+``--side-by-side`` prints only the paper-vs-modern table, ``--impl python`` times the Python
+reference instead of each controller's default impl.
 """
 
 from __future__ import annotations
 
+import argparse
 import functools
+from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
@@ -41,6 +52,12 @@ PAPER_TABLE3 = {
 PAPER_DOF = {20: (754, 571), 45: (4081, 1319)}
 CANDIDATES = ("quadprog", "daqp", "proxqp", "osqp", "piqp", "clarabel", "highs", "qpoases")
 SOLVERS = [s for s in CANDIDATES if s in available_solvers()]
+#: the paper's way (its library's OSQP setting) and the modern way (OSQP hot, solver defaults)
+PAPER_SETTING = "osqp_libdwbc"
+MODERN = "osqp"
+SIDE_BY_SIDE = [s for s in (PAPER_SETTING, MODERN) if s in available_solvers()]
+#: the impl the tables time: None = each controller's default (native where built)
+IMPL: str | None = None
 
 
 def dof_robot(dof: int) -> str:
@@ -58,10 +75,45 @@ def recording(scenario: str, robot: str = "") -> tuple[LoadedScenario, Recording
     return loaded, rec.window(START, TICKS)
 
 
+def _settings(controller: str, solver: str) -> RunSettings:
+    config = {"impl": IMPL} if IMPL else {}
+    return RunSettings(controller=controller, solver=solver, mode="hot", controller_config=config)
+
+
 def run(scenario: str, controller: str, solver: str, robot: str = "") -> ReplayTimings:
     loaded, rec = recording(scenario, robot)
-    settings = RunSettings(controller=controller, solver=solver, mode="hot")
-    return replay(loaded, rec, settings)
+    return replay(loaded, rec, _settings(controller, solver))
+
+
+@dataclass
+class Counted:
+    """A replay's timings and, per tick, the solver iterations (all QPs of the tick) and rc_lqp's
+    ``replan`` / ``fallback`` diagnostics (0 for lqp)."""
+
+    timings: ReplayTimings
+    iterations: list[float] = field(default_factory=list)
+    replans: list[float] = field(default_factory=list)
+    fallbacks: list[float] = field(default_factory=list)
+
+    def after_warmup(self, values: list[float]) -> np.ndarray:
+        x = np.asarray(values[WARMUP:], dtype=float)
+        return x[np.isfinite(x)]
+
+
+def run_counted(scenario: str, controller: str, solver: str) -> Counted:
+    """:func:`run` that also keeps each tick's iterations and re-plan / fallback flags."""
+    loaded, rec = recording(scenario)
+    counted = Counted(ReplayTimings())
+
+    def keep(_: int, out: object) -> str:
+        counted.iterations.append(float(getattr(out, "iterations", np.nan)))
+        diagnostics = getattr(out, "diagnostics", {})
+        counted.replans.append(float(diagnostics.get("replan", 0.0)))
+        counted.fallbacks.append(float(diagnostics.get("fallback", 0.0)))
+        return ""
+
+    counted.timings = replay(loaded, rec, _settings(controller, solver), on_step=keep)
+    return counted
 
 
 def columns(t: ReplayTimings) -> dict[str, float]:
@@ -89,7 +141,7 @@ def columns(t: ReplayTimings) -> dict[str, float]:
 # -- pytest-benchmark cases -------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("solver", SOLVERS)
+@pytest.mark.parametrize("solver", list(dict.fromkeys([*SOLVERS, *SIDE_BY_SIDE])))
 @pytest.mark.parametrize("controller", CONTROLLERS)
 @pytest.mark.parametrize("support", list(TABLE3))
 def test_table3(benchmark, support: str, controller: str, solver: str) -> None:
@@ -122,7 +174,10 @@ def fastest_solver() -> str:
 
 
 def table3(solver: str) -> None:
-    print(f"\nTable 3 — {solver}, hot, {TICKS - WARMUP} recorded states [µs] (paper: OSQP, C++)")
+    impl = f", impl {IMPL}" if IMPL else ""
+    print(
+        f"\nTable 3 — {solver}, hot{impl}, {TICKS - WARMUP} recorded states [µs] (paper: OSQP, C++)"
+    )
     head = (
         f"{'support':<7} {'method':<13} {'avg':>6} {'max':>6} {'median':>7} {'dyn':>5} "
         f"{'LQP1':>6} {'LQP2':>6} {'fail':>4} | {'paper avg':>9} {'max':>5} {'dyn':>4} "
@@ -150,8 +205,48 @@ def table3(solver: str) -> None:
         )
 
 
+def table3_side_by_side(paper: str = PAPER_SETTING, modern: str = MODERN) -> None:
+    """Table 3 the paper's way and the modern way on the same states: per support and method,
+    the per-tick median / mean [µs] and median iterations of each, and the ratio."""
+    impl = f", impl {IMPL}" if IMPL else ""
+    print(
+        f"\nTable 3, the paper's way ({paper}) vs the modern way ({modern}, hot, solver "
+        f"defaults){impl}, {TICKS - WARMUP} recorded states: per-tick median / mean [µs], "
+        "median iterations per tick (all QPs), rc_lqp re-plans / full-model fallbacks"
+    )
+    print(
+        f"{'support':<7} {'method':<13} | {paper:>14} {'mean':>5} {'iter':>5} {'r/f':>7} | "
+        f"{modern:>14} {'mean':>5} {'iter':>5} {'r/f':>7} | {'modern/paper':>12}"
+    )
+    for support, scenario in TABLE3.items():
+        medians: dict[tuple[str, str], float] = {}
+        for c, label in (("lqp", "conventional"), ("rc_lqp", "proposed")):
+            cells = []
+            for solver in (paper, modern):
+                r = run_counted(scenario, c, solver)
+                cols = columns(r.timings)
+                medians[(solver, c)] = cols["median"]
+                iters = r.after_warmup(r.iterations)
+                rf = (
+                    f"{int(sum(r.after_warmup(r.replans)))}/{int(sum(r.after_warmup(r.fallbacks)))}"
+                )
+                fail = f" ({int(cols['failures'])} failed)" if cols["failures"] else ""
+                cells.append(
+                    f"{cols['median']:14.0f} {cols['avg']:5.0f} "
+                    f"{np.median(iters) if iters.size else np.nan:5.0f} {rf:>7}{fail}"
+                )
+            ratio = medians[(modern, c)] / medians[(paper, c)]
+            print(f"{support:<7} {label:<13} | {cells[0]} | {cells[1]} | {ratio:12.2f}")
+        p_ratio = PAPER_TABLE3[support][1][0] / PAPER_TABLE3[support][0][0]
+        ours = "  ".join(
+            f"{s}: {medians[(s, 'rc_lqp')] / medians[(s, 'lqp')]:.2f}" for s in (paper, modern)
+        )
+        print(f"{support:<7} rc_lqp / lqp medians: {ours} (paper, from its avg: {p_ratio:.2f})")
+
+
 def dof_series(solver: str) -> None:
-    print(f"\nDoF scaling (Fig. 5), double support — {solver}, hot, median [µs]")
+    impl = f", impl {IMPL}" if IMPL else ""
+    print(f"\nDoF scaling (Fig. 5), double support — {solver}, hot{impl}, median [µs]")
     print(
         f"{'DoF':>4} {'n_uc':>5} {'lqp':>7} {'rc_lqp':>7} {'ratio':>6} | {'paper':>12} {'ratio':>6}"
     )
@@ -166,17 +261,32 @@ def dof_series(solver: str) -> None:
         )
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    global IMPL
     from threadpoolctl import threadpool_limits
 
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument(
+        "--side-by-side",
+        action="store_true",
+        help=f"only the paper's way ({PAPER_SETTING}) vs the modern way ({MODERN} hot) table",
+    )
+    parser.add_argument(
+        "--impl", choices=["native", "python"], help="the impl to time (default: each's own)"
+    )
+    args = parser.parse_args(argv)
+    IMPL = args.impl
     threadpool_limits(1)
+    if len(SIDE_BY_SIDE) == 2:
+        table3_side_by_side()
+    if args.side_by_side:
+        return
     fastest = fastest_solver()
-    for solver in dict.fromkeys(["osqp", fastest]):
-        if solver in SOLVERS:
-            table3(solver)
-    for solver in dict.fromkeys(["osqp", fastest]):
-        if solver in SOLVERS:
-            dof_series(solver)
+    tables = [s for s in dict.fromkeys([*SIDE_BY_SIDE, fastest]) if s in available_solvers()]
+    for solver in tables:
+        table3(solver)
+    for solver in tables:
+        dof_series(solver)
 
 
 if __name__ == "__main__":

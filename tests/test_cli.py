@@ -102,3 +102,33 @@ def test_cli_timing_falls_back_to_a_recorder_that_stands(tmp_path: Path, capsys)
     assert (runs["status"] == "ok").all()
     assert (runs["mode"] == "hot").all()
     assert runs["settings"].str.contains('"recorder": "lqp"').all()
+
+
+def test_list_names_each_solver_with_its_summary_and_a_named_settings_choices(capsys) -> None:
+    from wbcbench.qp import available_solvers
+
+    if "osqp_libdwbc" not in available_solvers():
+        pytest.skip("osqp not installed")
+    assert main(["list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    line = next(x for x in lines if x.strip().startswith("osqp_libdwbc "))
+    assert "OSQP as RC-LQP's libdwbc runs it" in line
+    assert line.endswith("[tier default, mode hot only]")
+    assert any(x.strip().startswith("osqp ") and "OSQP (ADMM" in x for x in lines)
+
+
+def test_run_a_scenario_with_a_named_setting(tmp_path: Path, capsys) -> None:
+    """Chosen by name like a backend; the CLI's default mode (cold) is not one it runs at."""
+    from wbcbench.qp import available_solvers
+
+    if "osqp_libdwbc" not in available_solvers():
+        pytest.skip("osqp not installed")
+    out = str(tmp_path / "run")
+    args = ["run", "tocabi_stand_sway", "--controller", "qp_wbc", "--solver", "osqp_libdwbc"]
+    args += [*TINY_SET, "--out", out, "--no-progress"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: osqp_libdwbc does not run at mode 'cold'; valid choices: hot")
+    assert main([*args, "--mode", "hot"]) == 0
+    runs = pd.read_csv(Path(out) / "runs.csv")
+    assert runs[["solver", "mode", "status"]].values.tolist() == [["osqp_libdwbc", "hot", "ok"]]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import wbcbench.qp as qp
-from wbcbench.errors import SolverError, UnknownNameError
+from wbcbench.errors import SolverError, UnknownNameError, UnofferedChoiceError, WbcBenchError
 from wbcbench.qp import Problem, Solution, SolutionStatus, check_solution, make_solver
 from wbcbench.qp.examples import random_qp, wbc_like_qp
 from wbcbench.qp.validity import validated
@@ -24,6 +24,8 @@ def test_public_api() -> None:
         "solve",
         "available_solvers",
         "all_solvers",
+        "available_backends",
+        "solver_class",
         "check_solution",
         "TIERS",
         "MODES",
@@ -189,6 +191,51 @@ def test_name_is_looked_up_before_the_tier() -> None:
     with pytest.raises(UnknownNameError) as err:
         make_solver("nope", tier="ultra")
     assert err.value.kind == "solver"
+
+
+LIBDWBC_HINT = (
+    "osqp_libdwbc is a fixed setting: tier default = libdwbc's OSQP settings (eps_abs = "
+    "eps_rel = 1e-3, alpha = 1.0), mode hot = one persistent OSQP object per QP, warm-started "
+    "from its previous solution and sent all its data every tick; `osqp` runs OSQP at any "
+    "tier, mode or options"
+)
+
+
+def test_a_named_setting_rejects_another_tier_mode_or_option_naming_the_valid_ones() -> None:
+    if "osqp_libdwbc" not in qp.available_solvers():
+        pytest.skip("osqp not installed")
+    with pytest.raises(UnofferedChoiceError) as err:
+        make_solver("osqp_libdwbc", tier="low", mode="hot")
+    assert str(err.value) == (
+        f"osqp_libdwbc does not run at tier 'low'; valid choices: default ({LIBDWBC_HINT})"
+    )
+    assert isinstance(err.value, UnknownNameError)  # caught wherever a bad name is
+    with pytest.raises(UnofferedChoiceError) as err:
+        make_solver("osqp_libdwbc", mode="warm")
+    assert str(err.value) == (
+        f"osqp_libdwbc does not run at mode 'warm'; valid choices: hot ({LIBDWBC_HINT})"
+    )
+    with pytest.raises(UnofferedChoiceError, match="does not run at mode 'cold'"):
+        make_solver("osqp_libdwbc")  # the default mode is cold
+    with pytest.raises(WbcBenchError) as err:
+        make_solver("osqp_libdwbc", mode="hot", alpha=1.6)
+    assert str(err.value) == f"osqp_libdwbc takes no native options (got alpha): {LIBDWBC_HINT}"
+    with pytest.raises(UnknownNameError) as err:  # an unknown tier is still that
+        make_solver("osqp_libdwbc", tier="ultra", mode="hot")
+    assert str(err.value).startswith("unknown tier 'ultra'")
+    assert make_solver("osqp_libdwbc", mode="hot").mode == "hot"
+
+
+def test_named_settings_are_listed_with_what_they_run_at_but_are_not_backends() -> None:
+    if "osqp_libdwbc" not in qp.available_solvers():
+        pytest.skip("osqp not installed")
+    info = next(i for i in qp.all_solvers() if i["name"] == "osqp_libdwbc")
+    assert info["named_setting"] and info["tiers"] == ("default",) and info["modes"] == ("hot",)
+    assert "libdwbc" in info["summary"] and "RC-LQP" in info["summary"]
+    assert info["version"] == next(i["version"] for i in qp.all_solvers() if i["name"] == "osqp")
+    assert "osqp_libdwbc" not in qp.available_backends()
+    assert set(qp.available_backends()) <= set(qp.available_solvers())
+    assert all(i["summary"] for i in qp.all_solvers() if i["available"])
 
 
 def test_all_solvers_reports_versions() -> None:

@@ -1,7 +1,9 @@
 """Registry sweep: every installed backend × mode × tier against a high-accuracy reference.
 
 The reference is ProxQP at the ``high`` tier, itself accepted only if the independent KKT check
-(:func:`wbcbench.qp.check_solution`) passes at 1e-8. No timing is asserted here.
+(:func:`wbcbench.qp.check_solution`) passes at 1e-8. Named settings (``osqp_libdwbc``) are swept
+at the tiers and modes they run at, and their own definition is checked at the end. No timing is
+asserted here.
 """
 
 from __future__ import annotations
@@ -15,21 +17,39 @@ import pytest
 import wbcbench.qp as qp
 from wbcbench.qp import MODES, TIERS, Problem, SolutionStatus, check_solution, make_solver
 from wbcbench.qp.examples import infeasible_qp, random_qp, wbc_like_qp
-from wbcbench.qp.registry import BACKENDS, QPSOLVERS_NAMES, QPSOLVERS_PREFIX
+from wbcbench.qp.registry import BACKENDS, NAMED_SETTINGS, QPSOLVERS_NAMES, QPSOLVERS_PREFIX
 from wbcbench.qp.settings import TIER_EPS
 
-ALL_NAMES = sorted([*BACKENDS, *(QPSOLVERS_PREFIX + n for n in QPSOLVERS_NAMES)])
+ALL_NAMES = sorted([*BACKENDS, *NAMED_SETTINGS, *(QPSOLVERS_PREFIX + n for n in QPSOLVERS_NAMES)])
 INSTALLED = set(qp.available_solvers())
+#: the entries that keep a native object of their own (not the qpsolvers wrappers)
+OWN_OBJECT = {*BACKENDS, *NAMED_SETTINGS}
 
 
-def _param(name: str) -> Any:
+def _param(name: str, *more: str) -> Any:
     reason = next((i["reason"] for i in qp.all_solvers() if i["name"] == name), "")
     return pytest.param(
-        name, marks=pytest.mark.skipif(name not in INSTALLED, reason=f"{name}: {reason}")
+        name,
+        *more,
+        marks=pytest.mark.skipif(name not in INSTALLED, reason=f"{name}: {reason}"),
     )
 
 
+def _offers(name: str, tier: str, mode: str) -> bool:
+    """Whether the entry runs at tier × mode (a missing one is kept, to show as a skip)."""
+    return name not in INSTALLED or qp.solver_class(name).offers(tier, mode)
+
+
+def _modes(name: str) -> tuple[str, ...]:
+    return qp.solver_class(name).modes if name in INSTALLED else MODES
+
+
 SOLVERS = [_param(n) for n in ALL_NAMES]
+#: (name, tier, mode) for every combination the entry runs at
+CHOICES = [_param(n, t, m) for n in ALL_NAMES for t in TIERS for m in MODES if _offers(n, t, m)]
+#: (name, mode) at tier ``default`` and at tier ``mid`` (the tests that need 1e-6 accuracy)
+DEFAULT_TIER = [_param(n, m) for n in ALL_NAMES for m in MODES if _offers(n, "default", m)]
+MID = [_param(n, m) for n in ALL_NAMES for m in MODES if _offers(n, "mid", m)]
 
 #: ‖x − x*‖∞ accepted per tier; ``default`` is each solver's own (loosest: OSQP's 1e-3).
 DISTANCE = {"default": 2e-2, "low": 2e-2, "mid": 1e-4, "high": 1e-6}
@@ -56,10 +76,8 @@ def _reference(p: Problem) -> np.ndarray:
 REFERENCES = [_reference(p) for p in PROBLEMS]
 
 
-@pytest.mark.parametrize("name", SOLVERS)
-@pytest.mark.parametrize("mode", MODES)
-@pytest.mark.parametrize("tier", TIERS)
-def test_random_qps_reach_the_reference(name: str, mode: str, tier: str) -> None:
+@pytest.mark.parametrize(("name", "tier", "mode"), CHOICES)
+def test_random_qps_reach_the_reference(name: str, tier: str, mode: str) -> None:
     solver = make_solver(name, tier=tier, mode=mode)
     tol = max(DISTANCE[tier], DISTANCE_FLOOR.get(name, 0.0)) if tier == "high" else DISTANCE[tier]
     for p, ref in zip(PROBLEMS, REFERENCES, strict=True):
@@ -74,7 +92,7 @@ def test_random_qps_reach_the_reference(name: str, mode: str, tier: str) -> None
             assert abs(sol.objective - p.objective(ref)) <= 1e-3 * max(1.0, abs(sol.objective))
 
 
-@pytest.mark.parametrize("name", SOLVERS)
+@pytest.mark.parametrize("name", [_param(n) for n in ALL_NAMES if _offers(n, "mid", "cold")])
 def test_duals_follow_the_shared_convention(name: str) -> None:
     p = PROBLEMS[1]
     sol = make_solver(name, tier="mid").solve(p)
@@ -85,8 +103,7 @@ def test_duals_follow_the_shared_convention(name: str) -> None:
     assert v.ok, v
 
 
-@pytest.mark.parametrize("name", SOLVERS)
-@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize(("name", "mode"), DEFAULT_TIER)
 def test_infeasible_problem_is_reported_not_raised(name: str, mode: str) -> None:
     solver = make_solver(name, mode=mode)
     for _ in range(2):
@@ -103,16 +120,16 @@ def test_infeasible_problem_is_reported_not_raised(name: str, mode: str) -> None
 
 @pytest.mark.parametrize("name", SOLVERS)
 def test_effective_mode_is_reported(name: str) -> None:
-    for mode in MODES:
+    for mode in _modes(name):
         solver = make_solver(name, mode=mode)
         expected = qp.settings.effective_mode(mode, solver.warm_start, solver.hot_start)
         assert solver.mode == expected
         assert solver.solve(PROBLEMS[0]).mode == expected
-    if not make_solver(name).hot_start:
+    if not qp.solver_class(name).hot_start:
         assert make_solver(name, mode="hot").mode != "hot"
 
 
-@pytest.mark.parametrize("name", [n for n in SOLVERS if n.values[0] in BACKENDS])
+@pytest.mark.parametrize("name", [n for n in SOLVERS if n.values[0] in OWN_OBJECT])
 def test_hot_mode_updates_in_place_and_rebuilds_on_structure_change(name: str) -> None:
     solver = make_solver(name, mode="hot")
     if solver.mode != "hot":
@@ -132,7 +149,7 @@ def test_hot_mode_updates_in_place_and_rebuilds_on_structure_change(name: str) -
     assert check_solution(other, third, tol=1e-2).distance_to(REFERENCES[0]) <= 2e-2
 
 
-@pytest.mark.parametrize("name", [n for n in SOLVERS if n.values[0] in BACKENDS])
+@pytest.mark.parametrize("name", [n for n in SOLVERS if n.values[0] in OWN_OBJECT])
 def test_hot_mode_rebuilds_after_a_failed_solve(name: str) -> None:
     """A failed solve leaves a failed (possibly diverged) iterate in the native object: the next
     call must not start from it, but rebuild from the last solution that succeeded."""
@@ -147,7 +164,9 @@ def test_hot_mode_rebuilds_after_a_failed_solve(name: str) -> None:
     assert after.success and after.rebuilt and solver.builds == 2
 
 
-@pytest.mark.parametrize("name", [n for n in SOLVERS if n.values[0] in BACKENDS])
+@pytest.mark.parametrize(
+    "name", [n for n in SOLVERS if n.values[0] in OWN_OBJECT and _offers(n.values[0], "mid", "hot")]
+)
 def test_hot_mode_sees_in_place_changes_of_caller_arrays(name: str) -> None:
     solver = make_solver(name, tier="mid", mode="hot")
     p = dataclasses.replace(PROBLEMS[1], g=PROBLEMS[1].g.copy())
@@ -196,8 +215,7 @@ WBC = wbc_like_qp()
 WBC_REF = _reference(WBC)
 
 
-@pytest.mark.parametrize("name", SOLVERS)
-@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize(("name", "mode"), MID)
 def test_wbc_like_problem(name: str, mode: str) -> None:
     """70 variables, 45 equalities, 60 inequalities, PSD rank-deficient H."""
     solver = make_solver(name, tier="mid", mode=mode)
@@ -238,3 +256,93 @@ def test_a_solve_past_its_time_cap_fails_as_max_iter() -> None:
                       C=rng.standard_normal((n, n)), l=-np.ones(n), u=np.ones(n))  # fmt: skip
     sol = make_solver("osqp", tier="high", time_limit=1e-6).solve(problem)
     assert sol.status == SolutionStatus.MAX_ITER, sol.message
+
+
+# ---- named settings: osqp_libdwbc -------------------------------------------------------------
+needs_libdwbc = pytest.mark.skipif(
+    "osqp_libdwbc" not in INSTALLED, reason="osqp_libdwbc: package 'osqp' not installed"
+)
+
+
+def _settings_of(native: Any) -> dict[str, Any]:
+    """Every setting of a native OSQP object, by name."""
+    st = native.settings
+    return {key: getattr(st, key) for key in dir(st) if not key.startswith("_")}
+
+
+def _osqp_defaults() -> dict[str, Any]:
+    """The settings of an OSQP object set up with nothing but its data."""
+    import osqp
+    import scipy.sparse as sp
+
+    native = osqp.OSQP()
+    one = sp.csc_matrix(np.eye(1))
+    native.setup(one, np.zeros(1), one, -np.ones(1), np.ones(1))
+    return _settings_of(native)
+
+
+def _count_updates(solver: Any, monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
+    """Record the keyword arguments of every ``update`` call on the solver's native object."""
+    calls: list[dict[str, Any]] = []
+    native = solver._native
+    real = native.update
+
+    def spy(**kwargs: Any) -> Any:
+        calls.append(kwargs)
+        return real(**kwargs)
+
+    monkeypatch.setattr(native, "update", spy)
+    return calls
+
+
+@needs_libdwbc
+def test_osqp_libdwbc_is_osqp_at_libdwbcs_settings_and_the_defaults_elsewhere() -> None:
+    """libdwbc sets alpha = 1.0 (and warm start, verbosity off); every other setting, the
+    tolerances included, is OSQP's default: nothing else may differ from a bare OSQP object."""
+    solver = make_solver("osqp_libdwbc", mode="hot")
+    assert solver.solve(PROBLEMS[0]).success
+    ours, defaults = _settings_of(solver._native), _osqp_defaults()
+    assert ours.keys() == defaults.keys()
+    assert {k: v for k, v in ours.items() if v != defaults[k]} == {"alpha": 1.0, "verbose": 0}
+    assert ours["eps_abs"] == ours["eps_rel"] == 1e-3 and ours["warm_starting"] == 1
+    # a rebuilt object (a new structure) gets the same settings
+    assert solver.solve(PROBLEMS[1]).rebuilt
+    assert _settings_of(solver._native) == ours
+
+
+@needs_libdwbc
+def test_osqp_libdwbc_starts_each_solve_from_the_previous_solution() -> None:
+    p = wbc_like_qp()
+    solver = make_solver("osqp_libdwbc", mode="hot")
+    first, again = solver.solve(p), solver.solve(p)
+    assert first.rebuilt and not again.rebuilt
+    assert first.iterations is not None and again.iterations is not None
+    assert again.iterations < first.iterations
+    nearby = dataclasses.replace(p, g=1.01 * p.g)  # the next tick: nearby data
+    warm = solver.solve(nearby)
+    # the same settings from a fresh object and no guess
+    cold = make_solver("osqp", mode="cold", eps_abs=1e-3, eps_rel=1e-3, alpha=1.0).solve(nearby)
+    assert warm.success and not warm.rebuilt
+    assert (warm.iterations or 0) < (cold.iterations or 0)
+
+
+@needs_libdwbc
+def test_osqp_libdwbc_sends_p_and_a_every_call_where_osqp_sends_what_changed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Re-sending the matrices makes OSQP factorise again: libdwbc does it every tick, hot
+    ``osqp`` only when they changed (here: never, the same QP again)."""
+    p = PROBLEMS[1]
+    sent: dict[str, list[dict[str, Any]]] = {}
+    for name in ("osqp_libdwbc", "osqp"):
+        solver = make_solver(name, mode="hot")
+        assert solver.solve(p).rebuilt
+        sent[name] = _count_updates(solver, monkeypatch)
+        for _ in range(3):
+            sol = solver.solve(p)
+            assert sol.success and not sol.rebuilt
+    assert [sorted(kw) for kw in sent["osqp_libdwbc"]] == [["Ax", "Px", "l", "q", "u"]] * 3
+    assert sent["osqp"] == []
+    first = sent["osqp_libdwbc"][0]
+    np.testing.assert_array_equal(first["q"], p.g)
+    assert first["Px"].size == np.count_nonzero(np.triu(p.H) + np.eye(p.n))  # all of triu(H)

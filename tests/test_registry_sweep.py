@@ -9,7 +9,7 @@ from wbcbench.controllers.base import ControllerContext
 from wbcbench.controllers.registry import CONTROLLERS, make_controller
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import UnknownNameError
-from wbcbench.qp import available_solvers
+from wbcbench.qp import available_solvers, solver_class
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.load import load_scenario
 from wbcbench.sim.setup import scenario_context
@@ -28,7 +28,11 @@ def applicable(scenario: str) -> list[str]:
 
 
 def context(robot: Robot, solver: str, scenario: str = DYNAMIC) -> ControllerContext:
-    return scenario_context(load_scenario(scenario), robot, solver=solver, tier="mid")
+    """Tier mid, cold; a named setting at its own tier and mode."""
+    cls = solver_class(solver)
+    tier = "mid" if "mid" in cls.tiers else cls.tiers[0]
+    mode = "cold" if "cold" in cls.modes else cls.modes[0]
+    return scenario_context(load_scenario(scenario), robot, solver=solver, tier=tier, mode=mode)
 
 
 @pytest.mark.parametrize("solver", available_solvers())

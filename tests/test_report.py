@@ -176,6 +176,37 @@ def test_rc_lqp_table3_has_both_supports_every_column_and_the_ratios(tmp_path: P
     )
 
 
+def test_rc_lqp_table3_puts_the_papers_osqp_setting_beside_osqp_hot(tmp_path: Path) -> None:
+    """With runs of both, each support has the paper's way (osqp_libdwbc) first, then osqp,
+    each with its own ratio row."""
+    store = ResultsStore(tmp_path)
+    for support in ("double", "single"):
+        scenario = f"ahn_{support}_support"
+        for solver, conv, prop in (("osqp", 3000.0, 1500.0), ("osqp_libdwbc", 4000.0, 1000.0)):
+            for controller, total in (("lqp", conv), ("rc_lqp", prop)):
+                rid = f"{support}-{solver}-{controller}"
+                store.add_run(
+                    _timing_row(rid, scenario, controller, solver=solver),
+                    _stages(rid, total_mean=total, total_max=total),
+                )
+    table = TABLES["rc_lqp_table3"](load_results(tmp_path))
+    assert table.frame is not None
+    frame = table.frame
+    double = frame[frame["support"] == "double"]
+    assert double[["solver", "method"]].values.tolist() == [
+        ["osqp_libdwbc", "conventional (lqp)"],
+        ["osqp_libdwbc", "proposed (rc_lqp)"],
+        ["osqp_libdwbc", "ratio lqp / rc_lqp"],
+        ["osqp", "conventional (lqp)"],
+        ["osqp", "proposed (rc_lqp)"],
+        ["osqp", "ratio lqp / rc_lqp"],
+    ]
+    ratios = frame[frame["method"] == "ratio lqp / rc_lqp"].set_index(["support", "solver"])
+    assert ratios.loc[("single", "osqp_libdwbc"), "ours avg [µs]"] == pytest.approx(4.0)
+    assert ratios.loc[("single", "osqp"), "ours avg [µs]"] == pytest.approx(2.0)
+    assert any("osqp_libdwbc" in note for note in table.notes)
+
+
 def test_rc_lqp_dof_table_has_one_row_per_robot_with_both_medians(tmp_path: Path) -> None:
     store = ResultsStore(tmp_path)
     medians = {"tocabi_dof20": (800.0, 400.0), "tocabi_dof45": (4000.0, 1000.0)}

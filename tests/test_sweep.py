@@ -93,6 +93,20 @@ def plan(path: str):
             ["unknown controller 'lpq'", "lqp", "rc_lqp"],
         ),
         (
+            "version: 1\ntiming:\n  - solvers: [osqp, osqp_libdwbc]\n    modes: [cold, warm]\n",
+            "timing[0].solvers[1]",
+            [
+                "osqp_libdwbc runs at tier default and mode hot only",
+                "tiers default × modes cold, warm",
+                "`osqp` runs OSQP at any tier",
+            ],
+        ),
+        (
+            "version: 1\nsolver_comparison:\n  reference_solver: osqp_libdwbc\n",
+            "solver_comparison.reference_solver",
+            ["osqp_libdwbc does not run at tier high"],
+        ),
+        (
             "version: 1\ntracking:\n  - scenarios: [ahn_dof_scaling]\n    check_tol: -1\n",
             "tracking[0].check_tol",
             ["greater than 0"],
@@ -115,6 +129,45 @@ def test_a_bad_sweep_file_names_the_file_the_key_and_the_choices(
     assert message.startswith(f"{path}: {key}:"), message
     for word in words:
         assert word in message
+
+
+def test_a_named_setting_is_planned_at_its_own_tier_and_mode_and_runs_by_name(
+    tmp_path: Path,
+) -> None:
+    """``solvers: [osqp, osqp_libdwbc]`` over modes the setting does not all run at: the others
+    are dropped (and said so), the setting's runs are rows under its name."""
+    text = """\
+version: 1
+tracking:
+  - scenarios: [tocabi_stand_sway]
+    controllers: [qp_wbc]
+    solvers: [osqp, osqp_libdwbc]
+    tiers: [default, mid]
+    modes: [cold, hot]
+    set: ["duration=0.03", "metrics.window=[0.0, 0.03]", "metrics.timing_warmup=5"]
+solver_comparison:
+  solvers: [all]
+"""
+    p = plan(write(tmp_path, text))
+    planned = {(j.settings.solver, j.settings.tier, j.settings.mode) for j in p.jobs}
+    assert {x for x in planned if x[0] == "osqp_libdwbc"} == {("osqp_libdwbc", "default", "hot")}
+    assert len({x for x in planned if x[0] == "osqp"}) == 4
+    note = (
+        " · osqp_libdwbc: runs at tier default, mode hot only; the matrix's other tiers × "
+        "modes are not planned"
+    )
+    assert f"tracking[0]{note}" in p.not_applicable
+    assert f"solver_comparison{note}" in p.not_applicable
+    assert "osqp_libdwbc" in p.comparison_solvers
+    # run only the setting's row
+    p.jobs = [j for j in p.jobs if j.settings.solver == "osqp_libdwbc"]
+    p.comparison = None
+    report = run_sweep(p, tmp_path / "out", show_progress=False)
+    assert report.computed == 1 and not report.failed
+    runs = pd.read_csv(tmp_path / "out" / "runs.csv")
+    assert runs[["solver", "tier", "mode", "status"]].values.tolist() == [
+        ["osqp_libdwbc", "default", "hot", "ok"]
+    ]
 
 
 def test_every_controller_that_applies_is_planned_and_skips_are_recorded(tmp_path: Path) -> None:

@@ -43,10 +43,15 @@ def _cmd_list(args: argparse.Namespace) -> int:
     print("hierarchy strategies (hqp's `strategy`; lqp takes the QP ones):")
     for name, text in STRATEGY_SUMMARY.items():
         print(f"  {name:<12} {text}")
-    print("solvers:")
+    print("solvers (every tier and mode, except where a named setting fixes its own):")
     for info in all_solvers():
         state = "available" if info["available"] else f"missing ({info.get('reason', '')})"
-        print(f"  {info['name']:<20} {info.get('version') or '-':<12} {state}")
+        line = f"  {info['name']:<20} {info.get('version') or '-':<12} {state:<9}"
+        if info["summary"]:
+            line += f"  {info['summary']}"
+        if info["named_setting"] and info["available"]:
+            line += f" [tier {', '.join(info['tiers'])}, mode {', '.join(info['modes'])} only]"
+        print(line.rstrip())
     print("robots:")
     for name in available_robots():
         print(f"  {name}")

@@ -39,6 +39,21 @@ class UnknownNameError(WbcBenchError, KeyError):
         return str(self.args[0])
 
 
+class UnofferedChoiceError(UnknownNameError):
+    """A known tier or mode that one registry entry does not run at (e.g. a solver setting that
+    fixes its own tolerances); the message names the entry, the choice and the valid ones."""
+
+    def __init__(
+        self, owner: str, kind: str, name: str, valid: Iterable[str], hint: str = ""
+    ) -> None:
+        super().__init__(kind, name, valid, hint)
+        self.owner = owner
+        msg = f"{owner} does not run at {kind} {name!r}; valid choices: {', '.join(self.valid)}"
+        if hint:
+            msg += f" ({hint})"
+        self.args = (msg,)
+
+
 class ModelError(WbcBenchError):
     """A robot model cannot be loaded or lacks something a scenario needs."""
 

@@ -10,6 +10,8 @@ into closed-loop runs, each ``timing`` matrix into open-loop replay timing runs 
       - scenarios: ["*"]            # names, paths or globs over the scenarios/ folder
         controllers: ["*"]          # "*" = every controller that applies to the scenario
         solvers: [default]          # default | native | all | names | globs
+                                    # (native: every library once; all: also qpsolvers:<name>
+                                    # and named settings such as osqp_libdwbc)
         configs: {to_osf: [{}, {inverse: pinv}]}    # controller-config variants
         impls: [native, python]     # both impls of the controllers that have a native tick
         set: ["duration=3"]         # scenario overrides for every scenario of the matrix
@@ -311,10 +313,11 @@ def resolve_controllers(patterns: Sequence[str], file: str, key: str) -> list[tu
 
 
 def native_solvers() -> list[str]:
-    """Installed backends that call their library directly (not through qpsolvers)."""
-    from wbcbench.qp import available_solvers
+    """Installed backends that call their library directly (not through qpsolvers), each once:
+    named settings of a backend (``osqp_libdwbc``) are chosen by name or by ``all``."""
+    from wbcbench.qp import available_backends
 
-    return [s for s in available_solvers() if ":" not in s]
+    return available_backends()
 
 
 def default_solver() -> str:
@@ -324,7 +327,7 @@ def default_solver() -> str:
 
 def resolve_solvers(patterns: Sequence[str], file: str, key: str) -> list[str]:
     """``default``, ``native``, ``all``, globs over the installed names, or names."""
-    from wbcbench.qp import available_solvers, make_solver
+    from wbcbench.qp import available_solvers, solver_class
 
     out: list[str] = []
     for i, pattern in enumerate(patterns):
@@ -338,7 +341,7 @@ def resolve_solvers(patterns: Sequence[str], file: str, key: str) -> list[str]:
             names = fnmatch.filter(available_solvers(), pattern)
         else:
             try:
-                make_solver(pattern)
+                solver_class(pattern)
             except UnknownNameError as exc:
                 raise ScenarioError(
                     file, f"{key}[{i}]", f"{exc}; or one of default, native, all"
@@ -346,6 +349,53 @@ def resolve_solvers(patterns: Sequence[str], file: str, key: str) -> list[str]:
             names = [pattern]
         out += [n for n in names if n not in out]
     return out
+
+
+def check_solver_choices(
+    patterns: Sequence[str], tiers: Sequence[str], modes: Sequence[str], file: str, key: str
+) -> None:
+    """A solver named explicitly must run at one of the matrix's tiers × modes at least (a
+    named setting runs at its own only); the other combinations are dropped by the plan.
+
+    Raises:
+        ScenarioError: at ``{key}.solvers[i]``, naming the tiers and modes it runs at.
+    """
+    from wbcbench.qp import solver_class
+
+    for i, pattern in enumerate(patterns):
+        if pattern in ("default", "native", "all") or _is_glob(pattern):
+            continue
+        cls = solver_class(pattern)
+        if not any(cls.offers(t, m) for t in tiers for m in modes):
+            raise ScenarioError(
+                file,
+                f"{key}.solvers[{i}]",
+                f"{pattern} runs at tier {', '.join(cls.tiers)} and mode {', '.join(cls.modes)} "
+                f"only, and this matrix asks for tiers {', '.join(tiers)} × modes "
+                f"{', '.join(modes)}" + (f" ({cls.choice_hint})" if cls.choice_hint else ""),
+            )
+
+
+def offered_choices(
+    solvers: Sequence[str], tiers: Sequence[str], modes: Sequence[str], key: str
+) -> tuple[dict[tuple[str, str, str], bool], list[str]]:
+    """Which solver × tier × mode of a matrix the solvers run at, and one not-applicable line
+    per solver that does not run at all of them (a named setting)."""
+    from wbcbench.qp import solver_class
+
+    offered: dict[tuple[str, str, str], bool] = {}
+    notes: list[str] = []
+    for solver in solvers:
+        cls = solver_class(solver)
+        for tier in tiers:
+            for mode in modes:
+                offered[(solver, tier, mode)] = cls.offers(tier, mode)
+        if not all(offered[(solver, t, m)] for t in tiers for m in modes):
+            notes.append(
+                f"{key} · {solver}: runs at tier {', '.join(cls.tiers)}, mode "
+                f"{', '.join(cls.modes)} only; the matrix's other tiers × modes are not planned"
+            )
+    return offered, notes
 
 
 # -- planning
@@ -498,8 +548,13 @@ def _timing_options(matrix: TimingSpec, loaded: Any, file: str, key: str) -> dic
 
 
 def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
-    """Expand and validate the whole matrix; nothing is simulated."""
+    """Expand and validate the whole matrix; nothing is simulated.
+
+    A solver × tier × mode the solver does not run at (a named setting runs at its own only) is
+    not planned; the plan's ``not_applicable`` says so once per solver and matrix.
+    """
     from wbcbench.controllers.registry import controller_class
+    from wbcbench.qp import solver_class
 
     scenarios = _Scenarios()
     jobs: list[Job] = []
@@ -514,6 +569,9 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
         names = resolve_scenarios(matrix.scenarios, file, f"{key}.scenarios")
         controllers = resolve_controllers(matrix.controllers, file, f"{key}.controllers")
         solvers = resolve_solvers(matrix.solvers, file, f"{key}.solvers")
+        check_solver_choices(matrix.solvers, matrix.tiers, matrix.modes, file, key)
+        offered, notes = offered_choices(solvers, matrix.tiers, matrix.modes, key)
+        not_applicable += notes
         robots = _robot_overrides(matrix, file, key)
         combos = [
             (robot, variant, f"{key}.robots[{r}]" if robot else f"{key}.variants[{v}]")
@@ -555,6 +613,8 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                         for solver in solvers:
                             for tier in matrix.tiers:
                                 for mode in matrix.modes:
+                                    if not offered[(solver, tier, mode)]:
+                                        continue
                                     settings = RunSettings(
                                         controller=controller,
                                         solver=solver,
@@ -587,7 +647,16 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
     if comparison is not None:
         key = "solver_comparison"
         comp_solvers = resolve_solvers(comparison.solvers, file, f"{key}.solvers")
+        check_solver_choices(comparison.solvers, comparison.tiers, comparison.modes, file, key)
+        not_applicable += offered_choices(comp_solvers, comparison.tiers, comparison.modes, key)[1]
         resolve_solvers([comparison.reference_solver], file, f"{key}.reference_solver")
+        if not solver_class(comparison.reference_solver).offers("high", "cold"):
+            raise ScenarioError(
+                file,
+                f"{key}.reference_solver",
+                f"{comparison.reference_solver} does not run at tier high: the reference "
+                "solutions are high-tier solves of a backend (e.g. clarabel, proxqp)",
+            )
         names = resolve_scenarios(comparison.scenarios, file, f"{key}.scenarios")
         controllers = resolve_controllers(comparison.controllers, file, f"{key}.controllers")
         for name in names:

@@ -13,7 +13,13 @@ from __future__ import annotations
 
 from wbcbench.qp.base import QPSolver
 from wbcbench.qp.problem import Problem
-from wbcbench.qp.registry import all_solvers, available_solvers, make_solver
+from wbcbench.qp.registry import (
+    all_solvers,
+    available_backends,
+    available_solvers,
+    make_solver,
+    solver_class,
+)
 from wbcbench.qp.settings import MODES, TIERS
 from wbcbench.qp.solution import Solution, SolutionStatus
 from wbcbench.qp.validity import Validity, check_solution, validated
@@ -27,10 +33,12 @@ __all__ = [
     "SolutionStatus",
     "Validity",
     "all_solvers",
+    "available_backends",
     "available_solvers",
     "check_solution",
     "make_solver",
     "solve",
+    "solver_class",
     "validated",
 ]
 

@@ -23,9 +23,9 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from wbcbench.errors import SolverError
+from wbcbench.errors import SolverError, UnofferedChoiceError, WbcBenchError
 from wbcbench.qp.problem import Problem
-from wbcbench.qp.settings import check_mode, check_tier, effective_mode
+from wbcbench.qp.settings import MODES, TIERS, check_mode, check_tier, effective_mode
 from wbcbench.qp.solution import Solution, SolutionStatus
 
 Array = NDArray[np.float64]
@@ -49,15 +49,26 @@ class QPSolver(ABC):
 
     Class attributes a backend sets:
         name: registry name.
+        summary: one line for ``wbcbench list``.
         warm_start: the native API accepts an initial guess on a fresh object.
         hot_start: the native object can be kept and updated in place.
         internal_time_covers: what the solver's own timer covers, ``""`` if it has none.
+        tiers, modes: the tiers and modes it runs at: all of them for a backend, fewer for a
+            named setting that fixes its own tolerances or update policy
+            (:mod:`wbcbench.qp.backends.osqp_libdwbc`); ``choice_hint`` says why.
+        options_allowed: native settings may be overridden (``make_solver(..., **options)``);
+            ``False`` for a named setting, whose settings are its definition.
     """
 
     name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
     warm_start: ClassVar[bool] = False
     hot_start: ClassVar[bool] = False
     internal_time_covers: ClassVar[str] = ""
+    tiers: ClassVar[tuple[str, ...]] = TIERS
+    modes: ClassVar[tuple[str, ...]] = MODES
+    choice_hint: ClassVar[str] = ""
+    options_allowed: ClassVar[bool] = True
 
     def __init__(self, tier: str = "default", mode: str = "cold", **options: Any) -> None:
         """Create a handle.
@@ -66,9 +77,20 @@ class QPSolver(ABC):
             tier: accuracy tier (see :mod:`wbcbench.qp.settings`).
             mode: requested mode; ``self.mode`` holds the effective one.
             **options: native settings overriding the tier's (names as in the library).
+
+        Raises:
+            UnknownNameError: an unknown tier or mode, or (:class:`UnofferedChoiceError`) one
+                this entry does not run at.
+            WbcBenchError: native options given to a named setting.
         """
         self.tier = check_tier(tier)
         self.requested_mode = check_mode(mode)
+        self.check_choice(tier, mode)
+        if options and not self.options_allowed:
+            raise WbcBenchError(
+                f"{self.name} takes no native options (got {', '.join(sorted(options))}): "
+                + (self.choice_hint or "its settings are its definition")
+            )
         self.mode = effective_mode(mode, self.warm_start, self.hot_start)
         self.options: dict[str, Any] = {
             **self.tier_caps(tier),
@@ -80,6 +102,19 @@ class QPSolver(ABC):
         self._native: Any = None
         self._native_key: Hashable = None
         self._last: dict[str, bytes | None] = {}
+
+    @classmethod
+    def offers(cls, tier: str, mode: str) -> bool:
+        """True when this entry runs at ``tier`` and ``mode``."""
+        return tier in cls.tiers and mode in cls.modes
+
+    @classmethod
+    def check_choice(cls, tier: str, mode: str) -> None:
+        """Raise :class:`UnofferedChoiceError` unless this entry runs at ``tier`` and ``mode``."""
+        if tier not in cls.tiers:
+            raise UnofferedChoiceError(cls.name, "tier", tier, cls.tiers, hint=cls.choice_hint)
+        if mode not in cls.modes:
+            raise UnofferedChoiceError(cls.name, "mode", mode, cls.modes, hint=cls.choice_hint)
 
     # ---- backend hooks -------------------------------------------------------------------
     @staticmethod

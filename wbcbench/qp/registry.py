@@ -1,9 +1,16 @@
-"""The one table of QP backends: name → module, import-guarded.
+"""The tables of QP solvers: name → module, import-guarded.
+
+:data:`BACKENDS` holds one entry per library, each runnable at every accuracy tier and mode.
+:data:`NAMED_SETTINGS` holds backends run the way a paper's code runs them (fixed tolerances,
+mode and update policy, e.g. ``osqp_libdwbc``): chosen by name like a backend, at the one tier
+and mode they define (:meth:`QPSolver.check_choice` names them). ``qpsolvers:<name>`` runs a
+library through qpsolvers.
 
 Adding a backend: write ``wbcbench/qp/backends/<name>.py`` with a :class:`QPSolver` subclass,
 add one line to :data:`BACKENDS`, and the registry sweep in ``tests/test_qp_backends.py`` picks
-it up. Names are looked up here before any backend is imported, so an error inside a backend is
-never mistaken for "no such solver".
+it up (a named setting: a subclass of its backend with ``tiers`` / ``modes`` narrowed, one line
+in :data:`NAMED_SETTINGS`). Names are looked up here before any backend is imported, so an error
+inside a backend is never mistaken for "no such solver".
 """
 
 from __future__ import annotations
@@ -40,6 +47,12 @@ BACKENDS: dict[str, BackendEntry] = {
     "quadprog": BackendEntry("wbcbench.qp.backends.quadprog", "QuadprogSolver", "quadprog"),
 }
 
+#: name → a backend at a paper's fixed settings. Listed by ``all`` and by name, not by
+#: ``native`` (which means "every library once").
+NAMED_SETTINGS: dict[str, BackendEntry] = {
+    "osqp_libdwbc": BackendEntry("wbcbench.qp.backends.osqp_libdwbc", "OSQPLibdwbcSolver", "osqp"),
+}
+
 QPSOLVERS_PREFIX = "qpsolvers:"
 
 #: Backends also offered through qpsolvers as ``qpsolvers:<name>`` (qpsolvers' own names; its
@@ -63,7 +76,17 @@ UNKNOWN_HINT = "wbcbench.qp.all_solvers() lists every backend with its availabil
 
 
 def _all_names() -> list[str]:
-    return sorted([*BACKENDS, *(QPSOLVERS_PREFIX + n for n in QPSOLVERS_NAMES)])
+    return sorted([*BACKENDS, *NAMED_SETTINGS, *(QPSOLVERS_PREFIX + n for n in QPSOLVERS_NAMES)])
+
+
+def _entry(name: str) -> BackendEntry:
+    return BACKENDS[name] if name in BACKENDS else NAMED_SETTINGS[name]
+
+
+def _known(name: str) -> bool:
+    if name.startswith(QPSOLVERS_PREFIX):
+        return name[len(QPSOLVERS_PREFIX) :] in QPSOLVERS_NAMES
+    return name in BACKENDS or name in NAMED_SETTINGS
 
 
 @cache
@@ -84,7 +107,7 @@ def _load(name: str) -> type[QPSolver] | None:
         return make_wrapper(
             inner, native.tier_settings if native else lambda tier: {}, caps or (lambda tier: {})
         )
-    entry = BACKENDS[name]
+    entry = _entry(name)
     try:
         module = importlib.import_module(entry.module)
     except ImportError:
@@ -110,6 +133,10 @@ class SolverInfo(TypedDict):
     warm_start: bool
     hot_start: bool
     internal_time: str
+    summary: str
+    named_setting: bool
+    tiers: tuple[str, ...]
+    modes: tuple[str, ...]
 
 
 def available_solvers() -> list[str]:
@@ -117,13 +144,19 @@ def available_solvers() -> list[str]:
     return [name for name in _all_names() if _load(name) is not None]
 
 
+def available_backends() -> list[str]:
+    """Installed :data:`BACKENDS` (every library once, through its own API), sorted."""
+    return [name for name in sorted(BACKENDS) if _load(name) is not None]
+
+
 def all_solvers() -> list[SolverInfo]:
     """Every registry name with availability, library version and native capabilities.
 
     Each entry is a :class:`SolverInfo` dict; ``reason`` says why a name is unavailable.
     ``version`` is the library's distribution version (for ``qpsolvers:<name>``:
-    ``"qpsolvers <v>, <library> <v>"``); capabilities are those of an available backend and
-    ``False``/``""`` otherwise.
+    ``"qpsolvers <v>, <library> <v>"``); capabilities, ``summary`` and the ``tiers`` and
+    ``modes`` it runs at are those of an available backend and empty otherwise;
+    ``named_setting`` marks the entries of :data:`NAMED_SETTINGS`.
     """
     out: list[SolverInfo] = []
     for name in _all_names():
@@ -134,8 +167,8 @@ def all_solvers() -> list[SolverInfo]:
             version = f"qpsolvers {_version('qpsolvers')}, {dist} {_version(dist)}"
             reason = f"qpsolvers does not offer {inner!r} here"
         else:
-            version = _version(BACKENDS[name].distribution)
-            reason = f"package {BACKENDS[name].distribution!r} not installed"
+            version = _version(_entry(name).distribution)
+            reason = f"package {_entry(name).distribution!r} not installed"
         out.append(
             SolverInfo(
                 name=name,
@@ -145,9 +178,39 @@ def all_solvers() -> list[SolverInfo]:
                 warm_start=bool(cls and cls.warm_start),
                 hot_start=bool(cls and cls.hot_start),
                 internal_time=cls.internal_time_covers if cls else "",
+                summary=cls.summary if cls else "",
+                named_setting=name in NAMED_SETTINGS,
+                tiers=cls.tiers if cls else (),
+                modes=cls.modes if cls else (),
             )
         )
     return out
+
+
+def solver_class(name: str) -> type[QPSolver]:
+    """The class behind a registry name, nothing built: what it runs at (``tiers``, ``modes``,
+    :meth:`~wbcbench.qp.base.QPSolver.offers`), its ``summary`` and capabilities.
+
+    Raises:
+        UnknownNameError: the name is not in the registry, or its library is not installed
+            (listing the installed names).
+    """
+    if not _known(name):
+        raise UnknownNameError("solver", name, available_solvers(), hint=UNKNOWN_HINT)
+    cls = _load(name)
+    if cls is None:
+        if name.startswith(QPSOLVERS_PREFIX):
+            missing = "qpsolvers (with this solver)"
+        else:
+            missing = _entry(name).distribution
+        raise UnknownNameError(
+            "solver",
+            name,
+            available_solvers(),
+            hint=f"{name!r} is a known backend but its package is not installed: "
+            f"pip install {missing}",
+        )
+    return cls
 
 
 def make_solver(name: str, tier: str = "default", mode: str = "cold", **options: Any) -> QPSolver:
@@ -161,25 +224,13 @@ def make_solver(name: str, tier: str = "default", mode: str = "cold", **options:
 
     Raises:
         UnknownNameError: the name is not in the registry or its library is not installed
-            (listing the installed names), or the tier or mode is unknown.
+            (listing the installed names), or the tier or mode is unknown, or
+            (:class:`~wbcbench.errors.UnofferedChoiceError`) a named setting does not run at
+            it (listing those it runs at).
+        WbcBenchError: options given to a named setting.
     """
-    if name not in BACKENDS and not (
-        name.startswith(QPSOLVERS_PREFIX) and name[len(QPSOLVERS_PREFIX) :] in QPSOLVERS_NAMES
-    ):
+    if not _known(name):
         raise UnknownNameError("solver", name, available_solvers(), hint=UNKNOWN_HINT)
     check_tier(tier)
     check_mode(mode)
-    cls = _load(name)
-    if cls is None:
-        if name.startswith(QPSOLVERS_PREFIX):
-            missing = "qpsolvers (with this solver)"
-        else:
-            missing = BACKENDS[name].distribution
-        raise UnknownNameError(
-            "solver",
-            name,
-            available_solvers(),
-            hint=f"{name!r} is a known backend but its package is not installed: "
-            f"pip install {missing}",
-        )
-    return cls(tier=tier, mode=mode, **options)
+    return solver_class(name)(tier=tier, mode=mode, **options)

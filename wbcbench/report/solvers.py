@@ -8,6 +8,8 @@ accuracy tier and mode:
 * ``warm`` / ``hot``: one handle per sequence of the same QP (same controller and QP index) over
   consecutive ticks, so the second tick on starts from the first's solution or object.
 
+A named setting (``osqp_libdwbc``) runs at its own tier and mode only.
+
 Each solve is one row of ``qp_solves.csv`` (appended as it finishes; a rerun skips the rows it
 has): the reported status, whether the solution is *valid* — checked independently of the status
 with :func:`wbcbench.qp.validated` at the tier's tolerance scaled by the data's magnitude — the
@@ -168,8 +170,11 @@ def compare_on_problems(
     version: str = "",
     show_progress: bool = True,
 ) -> int:
-    """Solve every dumped problem with every solver × tier × mode; append rows; return count."""
+    """Solve every dumped problem with every solver × tier × mode the solver runs at (a named
+    setting runs at its own only); append rows; return count."""
     from tqdm import tqdm
+
+    from wbcbench.qp import solver_class
 
     table = SolveTable(folder)
     done = table.done()
@@ -177,7 +182,9 @@ def compare_on_problems(
     loaded = {p: Problem.load(p) for seq in sequences for p in seq}
     keys = {p: file_key(p) for p in loaded}
     refs: dict[Path, tuple[np.ndarray | None, bool]] = {}
-    combos = [(s, t, m) for s in solvers for t in tiers for m in modes]
+    combos = [
+        (s, t, m) for s in solvers for t in tiers for m in modes if solver_class(s).offers(t, m)
+    ]
     written = 0
     skip_rules = list(skip)
     with tqdm(total=len(combos), desc="solver comparison", disable=not show_progress) as bar:
@@ -409,7 +416,9 @@ def write_report(folder: str | Path) -> Path | None:
         "Tiers: `default` (solver defaults), `low` 1e-3, `mid` 1e-6, `high` 1e-9 (absolute "
         "primal / dual / gap). Modes: `cold` (fresh solver per problem), `warm` (previous "
         "solution as guess), `hot` (persistent solver updated in place). Success = a valid "
-        "solution, checked independently of the reported status.",
+        "solution, checked independently of the reported status. A named setting (e.g. "
+        "`osqp_libdwbc`, OSQP as the RC-LQP paper's library runs it) runs at its own tier and "
+        "mode only.",
         "",
     ]
     skipped = solves[solves["status"] == "skipped"].drop_duplicates(["solver", "tier", "mode"])
@@ -448,6 +457,7 @@ def _solver_versions(names: list[str]) -> str:
     rows = [
         {
             "solver": n,
+            "what": info.get(n, {}).get("summary", "") or "-",
             "version": info.get(n, {}).get("version", "?"),
             "warm start": info.get(n, {}).get("warm_start", ""),
             "hot start": info.get(n, {}).get("hot_start", ""),

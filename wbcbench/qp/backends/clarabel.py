@@ -78,6 +78,7 @@ class ClarabelSolver(QPSolver):
     """Clarabel; see the module docstring."""
 
     name = "clarabel"
+    summary = "Clarabel: interior point on the conic form, sparse"
     warm_start = False
     hot_start = True
     internal_time_covers = "solve"

@@ -88,6 +88,7 @@ class DAQPSolver(QPSolver):
     """DAQP; see the module docstring."""
 
     name = "daqp"
+    summary = "DAQP: dual active set, dense"
     warm_start = True
     hot_start = True
     internal_time_covers = "solve"

@@ -79,6 +79,7 @@ class HiGHSSolver(QPSolver):
     """HiGHS; see the module docstring."""
 
     name = "highs"
+    summary = "HiGHS: active-set QP, sparse"
     warm_start = False
     hot_start = True
     internal_time_covers = "solve"

@@ -69,6 +69,7 @@ class PIQPSolver(QPSolver):
     """PIQP dense; see the module docstring."""
 
     name = "piqp"
+    summary = "PIQP: proximal interior point, dense"
     warm_start = False
     hot_start = True
     internal_time_covers = "solve"

@@ -38,6 +38,7 @@ class ProxQPSolver(QPSolver):
     """ProxQP dense; see the module docstring."""
 
     name = "proxqp"
+    summary = "ProxQP (proxsuite): proximal augmented Lagrangian, dense"
     warm_start = True
     hot_start = True
     internal_time_covers = "solve"

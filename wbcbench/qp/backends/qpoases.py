@@ -74,6 +74,7 @@ class QpOASESSolver(QPSolver):
     """qpOASES via CasADi; see the module docstring."""
 
     name = "qpoases"
+    summary = "qpOASES through CasADi: online active set, dense"
     warm_start = False
     hot_start = True
     internal_time_covers = "solve"

@@ -54,6 +54,7 @@ def make_wrapper(
 
     class QpsolversSolver(QPSolver):
         name = f"qpsolvers:{inner}"
+        summary = f"{inner} through qpsolvers' generic solve_problem"
         warm_start = inner in _ACCEPTS_INITVALS
         hot_start = False
         internal_time_covers = ""

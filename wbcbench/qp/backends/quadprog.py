@@ -56,6 +56,7 @@ class QuadprogSolver(QPSolver):
     """quadprog; see the module docstring."""
 
     name = "quadprog"
+    summary = "quadprog: Goldfarb-Idnani dual active set, dense"
     warm_start = False
     hot_start = False
     internal_time_covers = ""
