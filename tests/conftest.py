@@ -6,12 +6,18 @@ import numpy as np
 import pytest
 
 from wbcbench import _native
+from wbcbench.qp import available_solvers
+from wbcbench.qp.registry import NAMED_SETTINGS
 from wbcbench.robots.loader import Robot, load_robot
 
 ROBOTS = ("tocabi_like", "comanplus_like")
 
 #: the impls every controller with a native tick is tested on
 IMPLS = ["python", "native"] if _native.BUILT else ["python"]
+
+#: every installed solver that runs at any tier and mode: the backends and their qpsolvers
+#: wrappers (a named setting such as osqp_libdwbc runs at its own tier and mode only)
+ANY_TIER_SOLVERS = [s for s in available_solvers() if s not in NAMED_SETTINGS]
 
 
 @pytest.fixture(scope="session", params=ROBOTS)

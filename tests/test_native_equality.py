@@ -34,13 +34,13 @@ from wbcbench.controllers.base import Controller
 from wbcbench.controllers.registry import make_controller
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
-from wbcbench.qp import Problem, available_solvers
+from wbcbench.qp import Problem
 from wbcbench.qp.settings import TIER_EPS as TIERS_EPS
 from wbcbench.robots.loader import load_robot
 from wbcbench.scenarios.load import load_scenario
 from wbcbench.sim.setup import scenario_context
 
-from .conftest import grounded_state
+from .conftest import ANY_TIER_SOLVERS, grounded_state
 
 pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
 
@@ -204,7 +204,7 @@ def compare(
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
-@pytest.mark.parametrize("solver", available_solvers())
+@pytest.mark.parametrize("solver", ANY_TIER_SOLVERS)
 @pytest.mark.parametrize(
     "name,config",
     [(name, cfg) for name, cfgs in CONTROLLERS.items() for cfg in cfgs],

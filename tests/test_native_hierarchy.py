@@ -36,10 +36,10 @@ import pytest
 from wbcbench import _native
 from wbcbench.controllers import native
 from wbcbench.dynamics.state import RobotState
-from wbcbench.qp import available_solvers, make_solver
+from wbcbench.qp import make_solver
 from wbcbench.qp.hierarchy import solve_hierarchy
 
-from .conftest import grounded_state
+from .conftest import ANY_TIER_SOLVERS, grounded_state
 from .test_hierarchy import random_hierarchy
 from .test_native_equality import CASES, build_pair, relative
 
@@ -158,7 +158,7 @@ def base_residual(robot: Any, q: np.ndarray, v: np.ndarray, out: Any, frames: li
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
-@pytest.mark.parametrize("solver", available_solvers())
+@pytest.mark.parametrize("solver", ANY_TIER_SOLVERS)
 @pytest.mark.parametrize(
     "name,config,other",
     CONTROLLERS,

@@ -8,12 +8,12 @@ import pytest
 from wbcbench.controllers.qp_wbc import QpWbc, QpWbcConfig
 from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
-from wbcbench.qp import Problem, available_solvers, make_solver
+from wbcbench.qp import Problem, make_solver
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.load import load_scenario
 from wbcbench.sim.setup import scenario_context
 
-from .conftest import IMPLS, random_standing_state
+from .conftest import ANY_TIER_SOLVERS, IMPLS, random_standing_state
 
 
 def objective(problem: Problem, x: np.ndarray) -> float:
@@ -67,7 +67,7 @@ def test_oracle_100_states(robot: Robot, variables: str, impl: str) -> None:
     assert worst["qdd_rel"] <= 1e-6, worst
 
 
-@pytest.mark.parametrize("solver", available_solvers())
+@pytest.mark.parametrize("solver", ANY_TIER_SOLVERS)
 def test_oracle_every_backend(tocabi: Robot, solver: str) -> None:
     controller = make_qp_wbc(tocabi, solver, "mid")
     worst = check_against_oracle(tocabi, controller, n_states=10, seed=2)
@@ -116,7 +116,7 @@ def test_every_backend_solves_a_saved_problem_to_the_same_optimum(tocabi: Robot,
     reference = make_solver("proxqp", tier="high").solve(problem)
     assert reference.success
     ref_obj = objective(problem, reference.x)
-    for solver in available_solvers():
+    for solver in ANY_TIER_SOLVERS:
         sol = make_solver(solver, tier="mid").solve(problem)
         assert sol.success, f"{solver}: {sol.message}"
         gap = abs(objective(problem, sol.x) - ref_obj) / max(1.0, abs(ref_obj))
