@@ -141,8 +141,7 @@ class Hqp(Controller):
         s.wrench_weights = np.asarray(cfg.wrench_weights, dtype=float)
         s.prox = cfg.prox
         s.level_weights = list(cfg.level_weights)
-        s.priorities = self.priorities
-        s.groups = [[i for i, t in enumerate(tasks) if t.priority == p] for p in self.priorities]
+        s.priorities, s.groups = native.priority_groups(tasks)
         s.force_level = [task.level == "force" for task in tasks]
         native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
@@ -157,10 +156,8 @@ class Hqp(Controller):
         """The timed region of a native step: the whole hierarchy, its QPs through the lean
         path. Returns None, or the message of a failed tick."""
         assert self.native_solve is not None
-        self.native_solve.start(timer)
-        if self.native_tick.run(q, v, t, self.native_solve):
-            return None
-        return "hqp: " + self.native_solve.message(self.native_tick.result.failed_level)
+        message = native.hierarchy_region(self.native_tick, self.native_solve, q, v, t, timer)
+        return None if message is None else f"hqp: {message}"
 
     def _step_native(self, state: RobotState, t: float) -> ControlOutput:
         """The same step on the native tick (see :meth:`native_region`)."""

@@ -120,14 +120,6 @@ def level_weight(weights: list[float], i: int) -> float:
     return weights[min(i, len(weights) - 1)]
 
 
-def priority_groups(tasks: list[Any]) -> tuple[list[int], list[list[int]]]:
-    """The distinct priorities, highest (1) first, and the indices of each one's tasks (in the
-    scenario's order): the grouping of :func:`task_levels`, handed to a native tick once."""
-    priorities = sorted({task.priority for task in tasks})
-    groups = [[i for i, task in enumerate(tasks) if task.priority == p] for p in priorities]
-    return priorities, groups
-
-
 def lexicographic_settings(cfg: LexicographicConfig, tasks: list[Any]) -> Any:
     """The native settings both LQPs share, from the Python config."""
     s = native.core().LexicographicSettings()
@@ -137,7 +129,7 @@ def lexicographic_settings(cfg: LexicographicConfig, tasks: list[Any]) -> Any:
     s.prox = cfg.prox
     s.final_weight = cfg.final_weight
     s.weights = list(cfg.weights)
-    s.priorities, s.groups = priority_groups(tasks)
+    s.priorities, s.groups = native.priority_groups(tasks)
     return s
 
 
@@ -241,10 +233,7 @@ class Lqp(Controller):
         """The timed region of a native step: the whole hierarchy, its QPs through the lean
         path. Returns None, or the message of a failed tick."""
         assert self.native_solve is not None
-        self.native_solve.start(timer)
-        if self.native_tick.run(q, v, t, self.native_solve):
-            return None
-        return self.native_solve.message(self.native_tick.result.failed_level)
+        return native.hierarchy_region(self.native_tick, self.native_solve, q, v, t, timer)
 
     def _step_native(self, state: RobotState, t: float) -> ControlOutput:
         """The same step on the native tick (see :meth:`native_region`)."""

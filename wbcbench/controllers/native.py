@@ -259,6 +259,25 @@ class LevelSolve:
         return f"level {level!r}: {sol.solver}: {sol.status}: {sol.message}"
 
 
+def priority_groups(tasks: list[Task]) -> tuple[list[int], list[list[int]]]:
+    """The distinct priorities, highest (1) first, and the indices of each one's tasks (in the
+    scenario's order): the levels of a hierarchical controller, handed to its native tick."""
+    priorities = sorted({task.priority for task in tasks})
+    groups = [[i for i, task in enumerate(tasks) if task.priority == p] for p in priorities]
+    return priorities, groups
+
+
+def hierarchy_region(
+    tick: Any, solve: LevelSolve, q: Any, v: Any, t: float, timer: NativeTimer
+) -> str | None:
+    """The timed region of a native hierarchy tick: the whole tick, its QPs through ``solve``.
+    Returns None, or the message of a failed tick."""
+    solve.start(timer)
+    if tick.run(q, v, t, solve):
+        return None
+    return solve.message(tick.result.failed_level)
+
+
 def output(
     tick: Any,
     timer: NativeTimer,

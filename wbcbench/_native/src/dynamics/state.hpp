@@ -3,17 +3,15 @@
 // velocity; task Jacobians and drifts LOCAL_WORLD_ALIGNED, contact ones LOCAL.
 #pragma once
 
-#include <Eigen/Core>
 #include <Eigen/Cholesky>
+#include <Eigen/Core>
 #include <memory>
 #include <string>
 #include <vector>
 
-namespace wbcbench {
+#include "types.hpp"
 
-using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-using Matrix = Eigen::MatrixXd;
-using Vector = Eigen::VectorXd;
+namespace wbcbench {
 
 // Mirrors RobotState: M, M⁻¹, h, g, the CoM, its Jacobian and drift, the
 // centroidal momentum matrix and the Jacobians and drifts of the frames named at set-up.

@@ -4,11 +4,9 @@
 
 #include <Eigen/Core>
 
-namespace wbcbench {
+#include "types.hpp"
 
-using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-using Matrix = Eigen::MatrixXd;
-using Vector = Eigen::VectorXd;
+namespace wbcbench {
 
 //   minimise ½ xᵀ H x + gᵀ x  s.t.  A x = b,  l ≤ C x ≤ u,  lb ≤ x ≤ ub.
 // Row-major, so that the NumPy views the solvers read are C-contiguous.

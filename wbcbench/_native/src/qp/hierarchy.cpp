@@ -106,9 +106,10 @@ LevelResult level_result(const PriorityLevel& lv, const Vector& x) {
 
 // the finals merged into a level's cost: H += w FᵀF, g −= w Fᵀ f over x (Z empty), or over y
 // with x = x_p + Z y
-void add_merged(Eigen::Ref<RowMatrix> H, Eigen::Ref<Vector> g,
-                const std::vector<PriorityLevel>& merged, const Matrix* Z, const Vector* x_p) {
-  for (const auto& f : merged) {
+void add_merged(Eigen::Ref<RowMatrix> H, Eigen::Ref<Vector> g, const Hierarchy::Merged& merged,
+                const Matrix* Z, const Vector* x_p) {
+  for (const PriorityLevel* level : merged) {
+    const PriorityLevel& f = *level;
     if (Z == nullptr) {
       H.noalias() += f.weight * (f.A.transpose() * f.A);
       g.noalias() -= f.weight * (f.A.transpose() * f.b);
@@ -204,14 +205,8 @@ HierarchyResult Hierarchy::solve(const HardConstraints& hard,
   }
   if (options.handles < n_soft)
     throw std::invalid_argument("hierarchy: one solver handle per level (and per final)");
-  std::vector<PriorityLevel> levels(soft.begin(), soft.end());
-  std::vector<PriorityLevel> merged;
-  const int n_levels = n_soft - n_finals;
-  if (options.merge_finals && n_levels > 0 && n_finals > 0) {
-    merged.assign(soft.begin() + n_levels, soft.end());
-    levels.resize(n_levels);
-  }
-  return solve_sequential(hard, levels, merged, options.handles,
+  const bool merge = options.merge_finals && n_soft - n_finals > 0 && n_finals > 0;
+  return solve_sequential(hard, soft, merge ? n_soft - n_finals : n_soft, options.handles,
                           options.strategy == Strategy::kNullspace, options.prox,
                           options.slack_free_first, solver);
 }
@@ -266,7 +261,7 @@ HierarchyResult Hierarchy::solve_weighted(const HardConstraints& hard,
 Hierarchy::Answer Hierarchy::cascade_level(const HardConstraints& hard, const PriorityLevel& lv,
                                            const Matrix& E, const Vector& e, int handle,
                                            double relax, const Vector& center, double prox,
-                                           const std::vector<PriorityLevel>& merged,
+                                           const Merged& merged,
                                            bool hard_own, LevelSolver& solver) {
   // QP over z = (x, w, v): min ½‖w‖² + ½‖v‖² + ½ prox ‖P (x − center)‖², A x − w = b,
   // l ≤ C x − v ≤ u, E x = e, and the hard constraints (widened by relax)
@@ -326,7 +321,7 @@ Hierarchy::Answer Hierarchy::nullspace_level(const HardConstraints& hard,
                                              const PriorityLevel& lv, const Vector& x_p,
                                              const Matrix& Z, int handle, int kind,
                                              double relax, double prox,
-                                             const std::vector<PriorityLevel>& merged,
+                                             const Merged& merged,
                                              bool hard_own, LevelSolver& solver) {
   // QP over (y, v), x = x_p + Z y: min ½‖A Z y − (b − A x_p)‖² + ½‖v‖²
   const Index n = hard.n(), d = Z.cols(), r_own = lv.C.rows(), r = hard_own ? 0 : r_own;
@@ -398,11 +393,13 @@ Hierarchy::Answer Hierarchy::nullspace_level(const HardConstraints& hard,
 
 HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
                                             const std::vector<PriorityLevel>& soft,
-                                            const std::vector<PriorityLevel>& merged,
-                                            int n_handles, bool nullspace, double prox,
-                                            bool slack_free_first, LevelSolver& solver) {
+                                            int n_levels, int n_handles, bool nullspace,
+                                            double prox, bool slack_free_first,
+                                            LevelSolver& solver) {
   const Index n = hard.n();
-  const int n_soft = static_cast<int>(soft.size() + merged.size());
+  const int n_soft = static_cast<int>(soft.size());
+  Merged merged;
+  for (int j = n_levels; j < n_soft; ++j) merged.push_back(&soft[j]);
   // handles of the slack QPs: a second set when the caller holds one
   const int second = n_handles >= 2 * n_soft ? n_soft : 0;
   std::vector<const Matrix*> held_rows;  // equalities held so far, the hard ones excluded
@@ -418,8 +415,8 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
   Matrix R_hard, Z;
   Vector x_p;
   hard_factor(hard.A, hard.b, R_hard, Z, x_p);
-  const std::vector<PriorityLevel> none;
-  const int last = static_cast<int>(soft.size()) - 1;
+  const Merged none;
+  const int last = n_levels - 1;
   bool skip = false;
   double carried = 0.0;  // relative violation the levels solved so far left (see kFeasTol)
 
@@ -450,7 +447,7 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
       continue;
     }
     const PriorityLevel& lv = soft[i];
-    const std::vector<PriorityLevel>& extra = i == last ? merged : none;
+    const Merged& extra = i == last ? merged : none;
     // growing with the level, so the previous optimum is strictly inside the widened set
     const double relax = kFeasTol * i + carried;
     if (nullspace && lv.hard_if_feasible && i < last && soft[i + 1].C.rows() == 0) {
@@ -546,7 +543,7 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
     hold_inequalities(lv, res);
     if (nullspace) x_p = x;
   }
-  for (const auto& f : merged) out.levels.push_back(level_result(f, x));
+  for (const PriorityLevel* f : merged) out.levels.push_back(level_result(*f, x));
   out.x = x;
   out.ok = true;
   return out;

@@ -78,6 +78,9 @@ class LevelSolver {
 
 class Hierarchy {
  public:
+  // the finals merged into a level's cost (pointers into the caller's levels: no copies)
+  using Merged = std::vector<const PriorityLevel*>;
+
   explicit Hierarchy(int pool = 0) : pool_(pool) {}
   Hierarchy(const Hierarchy&) = delete;  // owns the buffers the Python views read
   Hierarchy& operator=(const Hierarchy&) = delete;
@@ -106,20 +109,20 @@ class Hierarchy {
 
   HierarchyResult solve_weighted(const HardConstraints& hard,
                                  const std::vector<PriorityLevel>& soft, LevelSolver& solver);
+  // soft[0, n_levels) are solved in turn; the rest (finals) are merged into the last one's cost
   HierarchyResult solve_sequential(const HardConstraints& hard,
-                                   const std::vector<PriorityLevel>& soft,
-                                   const std::vector<PriorityLevel>& merged, int n_handles,
-                                   bool nullspace, double prox, bool slack_free_first,
-                                   LevelSolver& solver);
+                                   const std::vector<PriorityLevel>& soft, int n_levels,
+                                   int n_handles, bool nullspace, double prox,
+                                   bool slack_free_first, LevelSolver& solver);
   // the cascade's level QP over z = (x, w, v) (see _cascade_level)
   Answer cascade_level(const HardConstraints& hard, const PriorityLevel& lv, const Matrix& E,
                        const Vector& e, int handle, double relax, const Vector& center,
-                       double prox, const std::vector<PriorityLevel>& merged, bool hard_own,
+                       double prox, const Merged& merged, bool hard_own,
                        LevelSolver& solver);
   // the null-space method's level QP over (y, v), x = x_p + Z y (see _nullspace_level)
   Answer nullspace_level(const HardConstraints& hard, const PriorityLevel& lv, const Vector& x_p,
                          const Matrix& Z, int handle, int kind, double relax,
-                         double prox, const std::vector<PriorityLevel>& merged, bool hard_own,
+                         double prox, const Merged& merged, bool hard_own,
                          LevelSolver& solver);
 
   int pool_;
