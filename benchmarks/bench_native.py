@@ -35,7 +35,19 @@ from wbcbench.sim.setup import scenario_context
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tests.conftest import grounded_state
 
-STAGES = ("dynamics", "build", "params", "solve", "solve_native", "crossing", "total")
+STAGES = (
+    "dynamics",
+    "build",
+    "params",
+    "reduced",
+    "lqp1",
+    "lqp2",
+    "fallback",
+    "solve",
+    "solve_native",
+    "crossing",
+    "total",
+)
 
 
 def states_for(scenario: str, n: int, seed: int = 0) -> tuple[Any, list[tuple[Any, ...]]]:

@@ -1,6 +1,9 @@
 """rc_lqp and lqp against the rigid-contact forward-dynamics oracle; lqp's sequential method
 against the cascade of full QPs; short closed-loop runs of the Ahn scenarios (tracking of rc_lqp
-against lqp, exact against paper torque assembly)."""
+against lqp, exact against paper torque assembly).
+
+Tests that read the Python reference's intermediate results (its LQPs' solutions, its reduced
+model) run it with impl: python; those that read only the step's output run every impl."""
 
 from __future__ import annotations
 
@@ -9,6 +12,7 @@ import functools
 import numpy as np
 import pytest
 
+from tests.conftest import IMPLS
 from wbcbench.controllers.base import Controller
 from wbcbench.controllers.lqp import Lqp, LqpConfig
 from wbcbench.controllers.rc_lqp import RcLqp, RcLqpConfig
@@ -45,7 +49,7 @@ def test_rc_lqp_exact_assembly_against_the_oracle(tocabi: Robot, scenario: str) 
     torque realises LQP 1's q̈_r (through J_r) and LQP 2's q̈_uc in the rigid-contact forward
     dynamics; contacts stay put; the predicted wrench is the realised one."""
     rng = np.random.default_rng(11)
-    ctrl = make(RcLqp, RcLqpConfig(assembly="exact"), scenario, tocabi)
+    ctrl = make(RcLqp, RcLqpConfig(assembly="exact", impl="python"), scenario, tocabi)
     assert isinstance(ctrl, RcLqp)
     keyframe = load_scenario(scenario).spec.initial.keyframe
     worst = {"qdd_r": 0.0, "qdd_uc": 0.0, "contact": 0.0, "wrench_rel": 0.0}
@@ -74,12 +78,16 @@ def test_rc_lqp_exact_assembly_against_the_oracle(tocabi: Robot, scenario: str) 
     assert worst["wrench_rel"] <= 1e-6, worst
 
 
+@pytest.mark.parametrize("impl", IMPLS)
 @pytest.mark.parametrize("scenario", SCENARIOS)
-def test_rc_lqp_paper_assembly_departs_only_in_the_chains(tocabi: Robot, scenario: str) -> None:
+def test_rc_lqp_paper_assembly_departs_only_in_the_chains(
+    tocabi: Robot, scenario: str, impl: str
+) -> None:
     """The paper's Γ_cc (eq. 14) equals the exact one; its Γ_uc (eq. 17) leaves out the base's
     acceleration, so the realised motion departs from the planned one."""
     rng = np.random.default_rng(12)
-    ctrl = make(RcLqp, RcLqpConfig(assembly="paper"), scenario, tocabi)
+    cfg = RcLqpConfig(assembly="paper", impl=impl)  # type: ignore[arg-type]
+    ctrl = make(RcLqp, cfg, scenario, tocabi)
     assert isinstance(ctrl, RcLqp)
     keyframe = load_scenario(scenario).spec.initial.keyframe
     departures = []
@@ -109,7 +117,7 @@ def test_rc_lqp_lqp2_tasks_leave_lqp1_priorities_unchanged(tocabi: Robot, previe
     """Strict hierarchy across the split: another hand reference changes q̈_uc but not LQP 1's
     priorities (contacts, CoM, pelvis); without the preview it leaves all of q̈_r unchanged."""
     rng = np.random.default_rng(13)
-    cfg = RcLqpConfig(centroid_preview=preview)  # type: ignore[arg-type]
+    cfg = RcLqpConfig(centroid_preview=preview, impl="python")  # type: ignore[arg-type]
     a = make(RcLqp, cfg, "ahn_double_support", tocabi)
     b = make(RcLqp, cfg, "ahn_double_support", tocabi)
     assert isinstance(a, RcLqp) and isinstance(b, RcLqp)
@@ -143,10 +151,12 @@ def test_rc_lqp_lqp2_tasks_leave_lqp1_priorities_unchanged(tocabi: Robot, previe
     assert np.abs(oa.qdd[uc] - ob.qdd[uc]).max() > 1e-2
 
 
-def test_rc_lqp_coupling_priority_holds_eq30(tocabi: Robot) -> None:
+@pytest.mark.parametrize("impl", IMPLS)
+def test_rc_lqp_coupling_priority_holds_eq30(tocabi: Robot, impl: str) -> None:
     """With the optional extra priority, the final LQP 2 still meets eq. (30)."""
     rng = np.random.default_rng(14)
-    ctrl = make(RcLqp, RcLqpConfig(coupling_priority=True), "ahn_double_support", tocabi)
+    cfg = RcLqpConfig(coupling_priority=True, impl=impl)  # type: ignore[arg-type]
+    ctrl = make(RcLqp, cfg, "ahn_double_support", tocabi)
     for _ in range(5):
         q, v = perturbed_state(tocabi, "stand", rng)
         ctrl.start(RobotState(tocabi, q, v))
@@ -248,13 +258,16 @@ def test_closed_loop_exact_assembly_tracks_at_least_as_well_as_the_papers() -> N
 # -- eq. (30) out of the chains' reach ---------------------------------------------------------
 
 
-def test_rc_lqp_replans_when_eq30_is_out_of_reach(tocabi: Robot) -> None:
+@pytest.mark.parametrize("impl", IMPLS)
+def test_rc_lqp_replans_when_eq30_is_out_of_reach(tocabi: Robot, impl: str) -> None:
     """The bare standing keyframe (v = 0) of tocabi_stand_sway during the sway: LQP 1 asks the
     chains for a centroidal acceleration that eq. (30) cannot meet within their torque and q̈
     limits. The step re-plans and still realises exactly what it predicts, within the limits;
     with ``infeasible_coupling = "fail"`` it fails instead of returning an unrealisable plan."""
-    replan = make(RcLqp, RcLqpConfig(), "tocabi_stand_sway", tocabi)
-    fail = make(RcLqp, RcLqpConfig(infeasible_coupling="fail"), "tocabi_stand_sway", tocabi)
+    cfg = RcLqpConfig(impl=impl)  # type: ignore[arg-type]
+    replan = make(RcLqp, cfg, "tocabi_stand_sway", tocabi)
+    cfg = RcLqpConfig(infeasible_coupling="fail", impl=impl)  # type: ignore[arg-type]
+    fail = make(RcLqp, cfg, "tocabi_stand_sway", tocabi)
     assert isinstance(replan, RcLqp)
     q, _ = tocabi.keyframe("stand")
     v = np.zeros(tocabi.nv)
@@ -274,13 +287,18 @@ def test_rc_lqp_replans_when_eq30_is_out_of_reach(tocabi: Robot) -> None:
         assert not bad.ok and "eq. (30)" in bad.message, bad.message
 
 
-def test_rc_lqp_falls_back_to_the_full_model_when_the_replan_misses(tocabi: Robot) -> None:
+@pytest.mark.parametrize("impl", IMPLS)
+def test_rc_lqp_falls_back_to_the_full_model_when_the_replan_misses(
+    tocabi: Robot, impl: str
+) -> None:
     """A state where the re-planned LQP 2 still cannot meet eq. (30) (the chains' torque limits
     move with the base acceleration): the tick is solved by the full-model LQP, exactly."""
     from tests.conftest import grounded_state
 
-    ctrl = make(RcLqp, RcLqpConfig(), "tocabi_stand_sway", tocabi)
-    full = make(Lqp, LqpConfig(impl="python"), "tocabi_stand_sway", tocabi)  # as the fallback
+    cfg = RcLqpConfig(impl=impl)  # type: ignore[arg-type]
+    ctrl = make(RcLqp, cfg, "tocabi_stand_sway", tocabi)
+    # the fallback is the full-model LQP of the same impl
+    full = make(Lqp, LqpConfig(impl=impl), "tocabi_stand_sway", tocabi)  # type: ignore[arg-type]
     rng = np.random.default_rng(2026)
     fallbacks = 0
     for _ in range(30):

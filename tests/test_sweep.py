@@ -461,18 +461,18 @@ def test_impls_run_each_impl_of_a_native_controller_once_and_a_python_one_once(
 ) -> None:
     path = write(
         tmp_path,
-        "version: 1\ntiming:\n  - scenarios: [tocabi_stand_sway]\n"
-        "    controllers: [qp_wbc, rc_lqp]\n    solvers: [daqp]\n    modes: [hot]\n"
+        "version: 1\ntiming:\n  - scenarios: [tocabi_stand_sway, rqr_reach]\n"
+        "    controllers: [qp_wbc, kin_hqp]\n    solvers: [daqp]\n    modes: [hot]\n"
         "    impls: [native, python, default]\n",
     )
     configs = sorted(
         (j.settings.controller, json.dumps(j.settings.controller_config)) for j in plan(path).jobs
     )
     assert configs == [
+        ("kin_hqp", "{}"),
         ("qp_wbc", '{"impl": "native"}'),
         ("qp_wbc", '{"impl": "python"}'),
         ("qp_wbc", "{}"),
-        ("rc_lqp", "{}"),
     ]
     bad = write(tmp_path, "version: 1\ntiming:\n  - impls: [fast]\n", "bad.yaml")
     with pytest.raises(ScenarioError) as err:

@@ -169,11 +169,14 @@ def task_terms(tasks: list[Task], native_tasks: Any) -> list[TaskTerm]:
     return out
 
 
-def new_tick(tick_type: str, robot: Any, tasks: list[Task], contact_frames: list[str]) -> Any:
+def new_tick(
+    tick_type: str, robot: Any, tasks: list[Task], contact_frames: list[str], *args: Any
+) -> Any:
     """A native tick of ``tick_type`` (e.g. ``QpWbcTick``) holding the started ``tasks``, in
-    that order (their rows stacked so)."""
+    that order (their rows stacked so); ``args`` go to its constructor after the frames."""
     frames = task_frames(tasks)
-    tick = getattr(core(), tick_type)(robot.pin_model.saveToString(), frames, contact_frames)
+    model = robot.pin_model.saveToString()
+    tick = getattr(core(), tick_type)(model, frames, contact_frames, *args)
     for task in tasks:
         tick.tasks.add(task_spec(task, frames))
     return tick

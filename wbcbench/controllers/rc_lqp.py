@@ -97,22 +97,32 @@ formulation + solve), ``solve.lqp1`` / ``solve.lqp2`` (solver only) and per leve
 ticks). Diagnostics: ``replan``, ``fallback``, ``coupling_residual`` (eq. 30), ``base_residual``
 (floating-base rows of the full dynamics at the combined solution), ``assembly_diff``
 (max |Γ_exact − Γ_paper| [N·m]) and each level's optimal slacks.
+
+``impl: native`` runs the same step in C++ (``wbcbench/_native/src/controllers/rc_lqp.cpp``):
+the reduced model, the row split (decided on its first tick, as here), the preview, both LQPs
+and every re-solve, the assembly and its checks; each hierarchy's level QPs go to the solver
+through the lean path with the handles of the pool the Python step uses for it, so warm and hot
+handles see the same problems in both impls. ``reduced``, ``lqp1``, ``lqp2`` and ``fallback``
+are then timed natively.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field
 
+from wbcbench import _native
+from wbcbench.controllers import native
 from wbcbench.controllers.base import (
     Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
+    NativeConfig,
     StageTimer,
 )
 from wbcbench.controllers.lqp import (
@@ -123,6 +133,7 @@ from wbcbench.controllers.lqp import (
     energy_objective,
     failed_output,
     level_weight,
+    lexicographic_settings,
     slack_diagnostics,
     task_levels,
 )
@@ -141,7 +152,7 @@ from wbcbench.tasks.contacts import stack_wrench_constraints
 from wbcbench.tasks.tasks import TaskTerm
 
 
-class RcLqpConfig(LexicographicConfig):
+class RcLqpConfig(NativeConfig, LexicographicConfig):
     """Settings of the reduced-centroidal LQP (``strategy`` etc. apply to each of its LQPs)."""
 
     assembly: Literal["exact", "paper"] = Field(
@@ -252,6 +263,7 @@ class RcLqp(Controller):
     )
     Config = RcLqpConfig
     reference_solvers = ("quadprog",)
+    has_native = True
     config: RcLqpConfig
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
@@ -269,9 +281,23 @@ class RcLqp(Controller):
         self.pool2c = SolverPool(ctx)
         self.pool2r = SolverPool(ctx)
         # the full-model LQP with the same priorities and settings: the last resort of a tick
-        # whose eq. (30) cannot be met (infeasible_coupling = "replan")
-        shared = set(LexicographicConfig.model_fields)
-        self.full = Lqp(ctx, LqpConfig(**self.config.model_dump(include=shared)))
+        # whose eq. (30) cannot be met (infeasible_coupling = "replan"); only its formulation
+        # and its solver handles are used, so it is the Python one whatever impl runs
+        shared = set(LexicographicConfig.model_fields) - {"impl"}
+        self.full = Lqp(ctx, LqpConfig(**self.config.model_dump(include=shared), impl="python"))
+        #: every hierarchy's handles, in the order of the native tick's pools (RcLqpPool)
+        self.pools = [
+            self.pool1,
+            self.pool2,
+            self.pool1b,
+            self.pool2b,
+            self.pool1c,
+            self.pool2c,
+            self.pool2r,
+            self.full.pool,
+        ]
+        self.native_tick: Any = None  # made at start() once the tasks are started
+        self.native_solve: native.LevelSolve | None = None
         self._rows: _RowSplit | None = None
         self.last: tuple[HierarchyResult, HierarchyResult | None] | None = None
         self.last_reduced: ReducedModel | None = None
@@ -279,6 +305,96 @@ class RcLqp(Controller):
         # actuated indices (into Γ) of the plain coordinates and of the chains
         self._act_plain = self.split.plain[6:] - 6
         self._act_uc = self.split.unconstrained - 6
+
+    # -- the native tick ------------------------------------------------------------------------
+
+    def start(self, state: RobotState) -> None:
+        super().start(state)
+        if self.impl == "native":
+            self.make_native()
+
+    def make_native(self) -> None:
+        """The native tick, from the started tasks and the chain split."""
+        cfg = self.config
+        tasks = self.ctx.tasks
+        core = native.core()
+        split = _native.split_spec(self.split)
+        tick = native.new_tick("RcLqpTick", self.ctx.robot, tasks, list(self.frames), split)
+        s = lexicographic_settings(cfg, tasks)
+        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+        rc = core.RcLqpSettings()
+        rc.assembly = getattr(core.Assembly, cfg.assembly)
+        rc.coupling_priority = cfg.coupling_priority
+        rc.centroid_preview = getattr(core.CentroidPreview, cfg.centroid_preview)
+        rc.lqp2_energy = getattr(core.Lqp2Energy, cfg.lqp2_energy)
+        rc.diagnostics = cfg.diagnostics
+        rc.coupling_tol = cfg.coupling_tol
+        rc.infeasible_coupling = getattr(core.InfeasibleCoupling, cfg.infeasible_coupling)
+        tick.configure(s, rc)
+        self.native_tick = tick
+        handles = [pool.get(tick.handles(i)) for i, pool in enumerate(self.pools)]
+        self.native_solve = native.LevelSolve(tick.slot, handles, self.ctx.keep_problems)
+
+    def native_region(
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
+    ) -> str | None:
+        """The timed region of a native step: both LQPs and every re-solve, their QPs through
+        the lean path. Returns None, or the message of a failed tick."""
+        assert self.native_solve is not None
+        self.native_solve.start(timer)
+        tick = self.native_tick
+        if tick.run(q, v, t, self.native_solve):
+            return None
+        if tick.level_failed:
+            return str(tick.message) + self.native_solve.message(tick.failed_level)
+        return str(tick.message)
+
+    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
+        """The same step on the native tick (see :meth:`native_region`), with the same
+        diagnostics and timings as :meth:`step`."""
+        if self.native_tick is None:
+            self.make_native()
+        assert self.native_solve is not None
+        cfg = self.config
+        timer = native.NativeTimer()
+        message = self.native_region(state.q, state.v, t, timer)
+        timer.stop()
+        tick = self.native_tick
+        terms = native.task_terms(self.ctx.tasks, tick.tasks)
+        self.last = None  # (the LQPs' results are the native tick's)
+        if message is not None:
+            n, k = state.n, state.k
+            timings = timer.finish(tick)
+            return failed_output(n, k, self.nc, terms, timings, message, self.last_output)
+        diag: dict[str, float] = {}
+        if cfg.assembly == "paper" or cfg.diagnostics:
+            diag["assembly_diff"] = float(tick.assembly_diff)
+        diag["base_residual"] = float(tick.base_residual)
+        if self.split.unconstrained.size or tick.fell_back:
+            diag["coupling_residual"] = float(tick.coupling_residual)
+        diag.update(slack_diagnostics(tick.lqp1))
+        if tick.has_lqp2:
+            diag.update(slack_diagnostics(tick.lqp2))
+        diag["prox_retries"] = float(tick.retries)
+        diag["replan"] = float(tick.replanned)
+        diag["fallback"] = float(tick.fell_back)
+        if cfg.coupling_priority:
+            diag["coupling_violation"] = float(tick.coupling_violation)
+            for key in ("w.lqp1.coupling", "v.lqp1.coupling", "w.lqp2.limits", "v.lqp2.limits"):
+                diag.setdefault(key, float("nan"))
+        out = native.output(tick, timer, terms, self.native_solve.kept, None, diag)
+        timings = out.timings
+        timings["reduced"] = tick.reduced_time
+        timings["lqp1"] = tick.lqp1_time
+        timings["lqp2"] = tick.lqp2_time
+        timings["fallback"] = tick.fallback_time
+        if cfg.coupling_priority:
+            timings.setdefault("solve.lqp1.coupling", 0.0)
+        for part in ("lqp1", "lqp2", "fallback"):
+            keys = [key for key in timings if key.startswith(f"solve.{part}.")]
+            timings[f"solve.{part}"] = sum(timings[key] for key in keys)
+        self.last_output = out
+        return out
 
     # -- task rows ------------------------------------------------------------------------------
 
@@ -678,6 +794,8 @@ class RcLqp(Controller):
         return qdd, f, tau, why
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
+        if self.impl == "native":
+            return self._step_native(state, t)
         timer = StageTimer(state)
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc

@@ -11,4 +11,5 @@ NB_MODULE(_core, m) {
   wbcbench::bind_controllers(m);
   wbcbench::bind_osf(m);
   wbcbench::bind_hierarchy(m);
+  wbcbench::bind_rc_lqp(m);
 }
