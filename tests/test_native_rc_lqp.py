@@ -34,7 +34,7 @@ import numpy as np
 import pytest
 
 from wbcbench import _native
-from wbcbench.controllers.lqp import priority_groups
+from wbcbench.controllers.native import priority_groups
 from wbcbench.controllers.registry import make_controller
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp import available_solvers
@@ -42,7 +42,7 @@ from wbcbench.robots.loader import load_robot
 from wbcbench.scenarios.load import load_scenario
 from wbcbench.sim.setup import scenario_context
 
-from .conftest import grounded_state
+from .conftest import ANY_TIER_SOLVERS, grounded_state
 from .test_native_equality import relative
 from .test_native_hierarchy import ACTIVE_SET, base_residual, slacks
 
@@ -126,8 +126,8 @@ def within_limits(ctrl: Any, out: Any) -> bool:
     """The answer's wrench within its inequalities and q̈ within its limits (relative 1e-6):
     what the level QPs hold. A backend may return a level's QP solution that breaks them
     without reporting a failure (measured: quadprog and DAQP on LQP 1's nearly degenerate QPs
-    with ``coupling_priority`` on tocabi_stand_sway, in either impl); the step does not check
-    them, so such an answer is counted as that impl's failure."""
+    with ``coupling_priority`` on tocabi_stand_sway, in either impl); the step checks the
+    wrench only to ``wrench_tol`` (1e-3), so such an answer is counted as that impl's failure."""
     Cf = ctrl.Cw @ out.wrench
     lo, hi = ctrl.lw, ctrl.uw
     fl, fh = np.isfinite(lo), np.isfinite(hi)
@@ -183,7 +183,9 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
         if not (valid_a and valid_b):
             continue
         assert a.diagnostics.keys() == b.diagnostics.keys()
-        assert STAGES <= set(a.timings) and set(b.timings) <= set(a.timings)
+        assert STAGES <= set(a.timings)
+        if branch(a) == branch(b):  # (a level solution one impl's check rejected: a re-plan)
+            assert set(b.timings) <= set(a.timings)
         for key, value in slacks(b.diagnostics).items():
             other = a.diagnostics[key]
             assert np.isnan(other) == np.isnan(value), key
@@ -218,7 +220,7 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
-@pytest.mark.parametrize("solver", available_solvers())
+@pytest.mark.parametrize("solver", ANY_TIER_SOLVERS)
 def test_native_equals_python(solver: str, case: str) -> None:
     check_case(case, solver, {})
 

@@ -46,6 +46,13 @@ class NativeConfig(ControllerConfig):
         description="native (the C++ tick) or python (the reference); by default native "
         "where the module is built",
     )
+    solver_calls: Literal["native", "python"] = Field(
+        "native",
+        description="impl native, hierarchical controllers (hqp, lqp, rc_lqp): call the QP "
+        "backend from C++ where the module links its library (osqp, osqp_libdwbc), or every "
+        "level QP through the Python solver handle's lean path; backends the module does not "
+        "link always go through Python",
+    )
 
 
 #: the environment variable that sets the default impl of every controller that has a native

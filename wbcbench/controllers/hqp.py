@@ -147,7 +147,10 @@ class Hqp(Controller):
         tick.configure(s)
         self.native_tick = tick
         self.native_solve = native.LevelSolve(
-            lambda pool, i: tick.slot(i), [self.solvers], self.ctx.keep_problems
+            lambda pool, i: tick.slot(i),
+            [self.solvers],
+            self.ctx.keep_problems,
+            self.config.solver_calls,
         )
 
     def native_region(

@@ -224,7 +224,10 @@ class Lqp(Controller):
         tick.configure(s)
         self.native_tick = tick
         self.native_solve = native.LevelSolve(
-            lambda pool, i: tick.slot(i), [self.pool.get(tick.handles)], self.ctx.keep_problems
+            lambda pool, i: tick.slot(i),
+            [self.pool.get(tick.handles)],
+            self.ctx.keep_problems,
+            self.config.solver_calls,
         )
 
     def native_region(

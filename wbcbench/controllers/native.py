@@ -23,7 +23,7 @@ import numpy as np
 from wbcbench import _native
 from wbcbench.controllers.base import ControlOutput, SolveTimes
 from wbcbench.errors import ControllerError
-from wbcbench.qp import Problem
+from wbcbench.qp import Problem, Solution, SolutionStatus
 from wbcbench.tasks.tasks import (
     ComTask,
     FrameOrientationTask,
@@ -218,9 +218,20 @@ class LevelSolve:
 
     The slot's Problem view is made once and re-made only when the native side re-made the
     slot's buffers (a size changed: ``reshaped``).
+
+    With ``solver_calls="native"``, the handles whose backend the module links
+    (:meth:`~wbcbench.qp.QPSolver.native_solver`) are solved in C++ instead (``natives``): the
+    tick never comes back here for them, and their records reach the timer after the tick. A
+    run that keeps its problems (solver dumps) solves through Python throughout.
     """
 
-    def __init__(self, slots: Any, pools: list[list[Any]], keep: bool = False) -> None:
+    def __init__(
+        self,
+        slots: Any,
+        pools: list[list[Any]],
+        keep: bool = False,
+        solver_calls: str = "python",
+    ) -> None:
         self.slots = slots  # (pool, slot) -> the native QpBuffers
         self.pools = pools
         self.keep = keep
@@ -228,12 +239,32 @@ class LevelSolve:
         self.timer: SolveTimes | None = None
         self.failed: Any = None
         self.kept: list[Problem] = []
+        self.natives: Any = None
+        if solver_calls == "native" and not keep:
+            self.natives = core().NativeSolvers()
+            for p, handles in enumerate(pools):
+                for i, handle in enumerate(handles):
+                    solver = handle.native_solver()
+                    if solver is not None:
+                        self.natives.set(p, i, solver)
 
-    def start(self, timer: SolveTimes) -> None:
+    def start(self, timer: NativeTimer) -> None:
         """Before a tick: the timer its solutions go to."""
         self.timer = timer
         self.failed = None
         self.kept = []
+        if self.natives is not None:
+            self.natives.clear()
+            timer.pending.append(self)
+
+    def run(self, tick: Any, q: Any, v: Any, t: float) -> bool:
+        """The tick's ``run`` with this callback and the C++ solvers."""
+        return bool(tick.run(q, v, t, self, self.natives))
+
+    def flush(self, timer: SolveTimes) -> None:
+        """The C++ solves of the last tick into ``timer`` (after the timed region)."""
+        for rec in self.natives.records():
+            timer.add_solution(native_solution(self.pools, rec), rec[2])
 
     def __call__(
         self, pool: int, handle: int, slot: int, reshaped: bool, level: str
@@ -255,11 +286,35 @@ class LevelSolve:
     def message(self, level: str) -> str:
         """Why the level's QP failed, as the Python hierarchy says it."""
         sol = self.failed
+        if sol is None and self.natives is not None:
+            record = self.natives.failure()
+            sol = None if record is None else native_solution(self.pools, record)
         if sol is None:
             return NAN_MESSAGE
         if level == "weighted":
             return f"weighted: {sol.status}: {sol.message}"
         return f"level {level!r}: {sol.solver}: {sol.status}: {sol.message}"
+
+
+def native_solution(pools: list[list[Any]], record: tuple[Any, ...]) -> Solution:
+    """A C++ solve's record ``(pool, handle, level, status, iterations, setup, wall, internal,
+    call, rebuilt, message)`` as the Solution the Python path would have reported (no x)."""
+    pool, handle, _, status, iterations, setup, wall, internal, call, rebuilt, message = record
+    solver = pools[pool][handle]
+    return Solution(
+        status=SolutionStatus(status),
+        iterations=None if iterations < 0 else iterations,
+        wall_time=wall,
+        setup_time=setup,
+        call_time=call,
+        internal_time=None if internal != internal else internal,
+        internal_time_covers=solver.internal_time_covers,
+        solver=solver.name,
+        mode=solver.mode,
+        message=message,
+        tier=solver.tier,
+        rebuilt=rebuilt,
+    )
 
 
 def priority_groups(tasks: list[Task]) -> tuple[list[int], list[list[int]]]:
@@ -276,7 +331,7 @@ def hierarchy_region(
     """The timed region of a native hierarchy tick: the whole tick, its QPs through ``solve``.
     Returns None, or the message of a failed tick."""
     solve.start(timer)
-    if tick.run(q, v, t, solve):
+    if solve.run(tick, q, v, t):
         return None
     return solve.message(tick.result.failed_level)
 
@@ -314,6 +369,8 @@ class NativeTimer(SolveTimes):
         super().__init__()
         self.t0 = time.perf_counter()
         self.total: float | None = None
+        # level solvers whose C++ solves reach the stages at finish()
+        self.pending: list[LevelSolve] = []
 
     def stop(self) -> None:
         """End the timed region (what follows, e.g. diagnostics, is not part of the tick)."""
@@ -322,6 +379,9 @@ class NativeTimer(SolveTimes):
     def finish(self, tick: Any) -> dict[str, float]:
         """The stages of the tick; ``params`` for ticks that have operational-space parameters."""
         total = time.perf_counter() - self.t0 if self.total is None else self.total
+        for solve in self.pending:
+            solve.flush(self)
+        self.pending = []
         dynamics, build = tick.dynamics_time, tick.build_time
         params = getattr(tick, "params_time", None)
         out = {

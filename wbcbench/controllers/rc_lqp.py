@@ -71,8 +71,10 @@ limits passed by up to 22 N·m, every such step reported ok; it happens even at 
 standing keyframe with v = 0 during the sway. The paper leaves this case open
 (eq. 30 is LQP 2's highest priority; §4.2's optional extra priority only feeds the violation
 back as a soft level). Here every step is checked after the assembly — eq. (30) met, the
-floating-base rows met (exact assembly), every torque within its limit, to ``coupling_tol`` — and
-one that fails the check is never returned as ok:
+floating-base rows met (exact assembly), every torque within its limit, to ``coupling_tol``, and
+the contacts' wrench inequalities met to ``wrench_tol`` (a nearly degenerate level QP can come
+back from an active-set solver as "solved" with a wrench outside them) — and one that fails the
+check is never returned as ok:
 
 * ``replan`` (default): feed the infeasibility back to LQP 1. An LQP 2 of the chains' limits and
   eq. (30) alone gives the centroidal acceleration ā_G the chains *can* reach nearest to the one
@@ -95,7 +97,8 @@ Timings (Table 3): ``reduced`` (the reduced-dynamics calculation), ``lqp1``, ``l
 formulation + solve), ``solve.lqp1`` / ``solve.lqp2`` (solver only) and per level
 ``solve.lqp1.<level>``, ``fallback`` and ``solve.fallback`` (the full-model LQP's, 0 on other
 ticks). Diagnostics: ``replan``, ``fallback``, ``coupling_residual`` (eq. 30), ``base_residual``
-(floating-base rows of the full dynamics at the combined solution), ``assembly_diff``
+(floating-base rows of the full dynamics at the combined solution), ``wrench_residual``
+(how far the wrench is outside the contacts' inequalities), ``assembly_diff``
 (max |Γ_exact − Γ_paper| [N·m]) and each level's optimal slacks.
 
 ``impl: native`` runs the same step in C++ (``wbcbench/_native/src/controllers/rc_lqp.cpp``):
@@ -187,6 +190,13 @@ class RcLqpConfig(NativeConfig, LexicographicConfig):
         "re-solve and the infeasible_coupling handling); also the tolerance of the step's check "
         "of the floating-base rows (relative to max(1, ‖h_base‖∞)) and of the torque limits",
     )
+    wrench_tol: float = Field(
+        1e-3,
+        gt=0,
+        description="violation of the contacts' wrench inequalities, relative to max(1, ‖f‖∞), "
+        "that fails the step's check (level solutions are trusted to the solver's accuracy: "
+        "OSQP at eps 1e-3 stays within it)",
+    )
     infeasible_coupling: Literal["replan", "fail"] = Field(
         "replan",
         description="when eq. (30) cannot be met within the chains' torque and acceleration "
@@ -202,6 +212,15 @@ PREVIEW_DAMPING = 1e-8
 #: singular values below this fraction of the largest count as zero in the preview (their
 #: directions are left to the priorities below)
 PREVIEW_RANK_TOL = 1e-6
+
+
+def wrench_violation(Cw: np.ndarray, lw: np.ndarray, uw: np.ndarray, f: np.ndarray) -> float:
+    """How far the wrench ``f`` is outside the contacts' inequalities ``lw ≤ Cw f ≤ uw`` (0
+    inside), in their units (N and N·m)."""
+    if not Cw.shape[0]:
+        return 0.0
+    cf = Cw @ f
+    return float(max(0.0, (lw - cf).max(), (cf - uw).max()))
 
 
 def _solve(
@@ -329,11 +348,14 @@ class RcLqp(Controller):
         rc.lqp2_energy = getattr(core.Lqp2Energy, cfg.lqp2_energy)
         rc.diagnostics = cfg.diagnostics
         rc.coupling_tol = cfg.coupling_tol
+        rc.wrench_tol = cfg.wrench_tol
         rc.infeasible_coupling = getattr(core.InfeasibleCoupling, cfg.infeasible_coupling)
         tick.configure(s, rc)
         self.native_tick = tick
         handles = [pool.get(tick.handles(i)) for i, pool in enumerate(self.pools)]
-        self.native_solve = native.LevelSolve(tick.slot, handles, self.ctx.keep_problems)
+        self.native_solve = native.LevelSolve(
+            tick.slot, handles, self.ctx.keep_problems, cfg.solver_calls
+        )
 
     def native_region(
         self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
@@ -343,7 +365,7 @@ class RcLqp(Controller):
         assert self.native_solve is not None
         self.native_solve.start(timer)
         tick = self.native_tick
-        if tick.run(q, v, t, self.native_solve):
+        if self.native_solve.run(tick, q, v, t):
             return None
         if tick.level_failed:
             return str(tick.message) + self.native_solve.message(tick.failed_level)
@@ -370,6 +392,7 @@ class RcLqp(Controller):
         if cfg.assembly == "paper" or cfg.diagnostics:
             diag["assembly_diff"] = float(tick.assembly_diff)
         diag["base_residual"] = float(tick.base_residual)
+        diag["wrench_residual"] = float(tick.wrench_residual)
         if self.split.unconstrained.size or tick.fell_back:
             diag["coupling_residual"] = float(tick.coupling_residual)
         diag.update(slack_diagnostics(tick.lqp1))
@@ -791,6 +814,9 @@ class RcLqp(Controller):
         excess = float((np.abs(tau) - self.ctx.tau_max * (1 + tol)).max(initial=-np.inf))
         if not why and excess > tol:
             why = f"torque limit exceeded by {excess:.3g} N·m"
+        diag["wrench_residual"] = wrench_violation(self.Cw, self.lw, self.uw, f)
+        if not why and diag["wrench_residual"] > cfg.wrench_tol * max(1.0, np.abs(f).max()):
+            why = f"wrench inequalities broken by {diag['wrench_residual']:.3g}"
         return qdd, f, tau, why
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
@@ -866,6 +892,7 @@ class RcLqp(Controller):
                 base = state.M[:6] @ qdd + state.h[:6] - Jc[:, :6].T @ f
                 diag["base_residual"] = float(np.abs(base).max())
                 diag["coupling_residual"] = float("nan")
+                diag["wrench_residual"] = wrench_violation(self.Cw, self.lw, self.uw, f)
         if why:
             msg = f"{why}: eq. (30) cannot be met within the chains' torque and q̈ limits"
             return failed_output(n, k, nc, terms, timer.finish(), msg, self.last_output)

@@ -146,6 +146,13 @@ class QPSolver(ABC):
         """Extra per-call test for an in-place update (e.g. a sparsity pattern still fits)."""
         return True
 
+    def native_solver(self) -> Any | None:
+        """The same solver called from C++ (a ``wbcbench._native`` ``QpSolver`` with this
+        handle's mode and settings) for the level solves of native ticks, or None when the
+        module does not link this backend's library or cannot take one of its settings; those
+        solves then go through :meth:`solve` (``lean=True``)."""
+        return None
+
     # ---- public --------------------------------------------------------------------------
     def reset(self) -> None:
         """Forget the previous solution and the native object."""

@@ -10,6 +10,7 @@ NB_MODULE(_core, m) {
   wbcbench::bind_reduced(m);
   wbcbench::bind_controllers(m);
   wbcbench::bind_osf(m);
+  wbcbench::bind_solvers(m);
   wbcbench::bind_hierarchy(m);
   wbcbench::bind_rc_lqp(m);
 }

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import osqp as _osqp
 
+from wbcbench import _native
 from wbcbench.qp.backends._common import (
     fits,
     pattern_csc,
@@ -44,6 +45,10 @@ _STATUS = {
     _S.OSQP_MAX_ITER_REACHED: SolutionStatus.MAX_ITER,
     _S.OSQP_TIME_LIMIT_REACHED: SolutionStatus.MAX_ITER,
 }
+
+
+#: OSQP's former setting names, which osqp.OSQP still takes
+_RENAMED = {"polish": "polishing", "warm_start": "warm_starting"}
 
 
 def _stack(problem: Problem) -> tuple[Array, Array, Array]:
@@ -78,6 +83,25 @@ class OSQPSolver(QPSolver):
         # ADMM needs many more than its default 4000 iterations to reach 1e-6 / 1e-9 on
         # whole-body QPs (weights spanning nine decades); the tier asks for that accuracy.
         return {"eps_abs": eps, "eps_rel": 0.0, "max_iter": 200_000}
+
+    #: every in-place update sends all the data (osqp_libdwbc), not only what changed
+    send_all: bool = False
+
+    def native_solver(self) -> Any | None:
+        """OSQP's C library through the native module (the same OSQP as this wheel's), with
+        this handle's mode and settings; None when the module is not built or a setting is not
+        a plain number it knows."""
+        core = _native._core
+        if core is None:
+            return None
+        names = set(core.osqp_setting_names())
+        options: dict[str, float] = {}
+        for key, value in self.options.items():
+            key = _RENAMED.get(key, key)
+            if key not in names or not isinstance(value, bool | int | float):
+                return None
+            options[key] = float(value)
+        return core.OsqpSolver(self.mode, options, send_all=self.send_all)
 
     def _can_update(self, problem: Problem) -> bool:
         p_mask, m_mask = self._masks

@@ -84,6 +84,8 @@ class OSQPLibdwbcSolver(OSQPSolver):
     def tier_settings(tier: str) -> dict[str, Any]:
         return dict(LIBDWBC_SETTINGS)
 
+    send_all = True
+
     def _fields_to_send(self, changed: frozenset[str]) -> frozenset[str]:
         """Everything, every tick: libdwbc updates the gradient, bounds, Hessian and constraint
         matrix of its OSQP object unconditionally."""

@@ -17,5 +17,6 @@ void bind_controllers(nb::module_& m);
 void bind_osf(nb::module_& m);
 void bind_hierarchy(nb::module_& m);
 void bind_rc_lqp(nb::module_& m);
+void bind_solvers(nb::module_& m);
 
 }  // namespace wbcbench

@@ -76,6 +76,9 @@ void bind_controllers(nb::module_& m) {
       .def_prop_ro("error_vel", &TaskSet::error_vel, kView);
 
   nb::class_<QpBuffers>(m, "QpBuffers", "One QP's buffers, refilled in place every tick.")
+      .def(nb::init<>())
+      .def("resize", &QpBuffers::resize, nb::arg("n"), nb::arg("n_eq"), nb::arg("n_in"),
+           nb::arg("box"))
       .def_prop_ro("H", [](QpBuffers& b) -> RowMatrix& { return b.H; }, kView)
       .def_prop_ro("g", [](QpBuffers& b) -> Vector& { return b.g; }, kView)
       .def_prop_ro("A", [](QpBuffers& b) -> RowMatrix& { return b.A; }, kView)

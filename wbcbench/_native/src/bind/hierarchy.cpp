@@ -75,7 +75,7 @@ void bind_hierarchy(nb::module_& m) {
           "solve",
           [](Hierarchy& h, const HardConstraints& hard, const std::vector<PriorityLevel>& soft,
              int n_finals, const HierarchyOptions& options, nb::callable fn) {
-            PyLevelSolver solver(std::move(fn));
+            PyLevelSolver solver(std::move(fn), nullptr);
             return h.solve(hard, soft, n_finals, options, solver);
           },
           nb::arg("hard"), nb::arg("soft"), nb::arg("n_finals"), nb::arg("options"),
@@ -105,11 +105,13 @@ void bind_hierarchy(nb::module_& m) {
       .def("configure", &LqpTick::configure, nb::arg("settings"))
       .def(
           "run",
-          [](LqpTick& tick, ConstVec q, ConstVec v, double t, nb::callable fn) {
-            PyLevelSolver solver(std::move(fn));
+          [](LqpTick& tick, ConstVec q, ConstVec v, double t, nb::callable fn,
+             NativeSolvers* natives) {
+            PyLevelSolver solver(std::move(fn), natives);
             return tick.run(q, v, t, solver);
           },
-          nb::arg("q").noconvert(), nb::arg("v").noconvert(), nb::arg("t"), nb::arg("solve"))
+          nb::arg("q").noconvert(), nb::arg("v").noconvert(), nb::arg("t"), nb::arg("solve"),
+          nb::arg("natives").none() = nb::none())
       .def_prop_ro("handles", [](const LqpTick& t) { return t.lqp().handles(); })
       .def("slot", [](const LqpTick& t, int i) -> QpBuffers& { return slot_of(t.lqp().hierarchy(), i); },
            nb::arg("i"), kView)
@@ -147,11 +149,13 @@ void bind_hierarchy(nb::module_& m) {
       .def("configure", &HqpTick::configure, nb::arg("settings"))
       .def(
           "run",
-          [](HqpTick& tick, ConstVec q, ConstVec v, double t, nb::callable fn) {
-            PyLevelSolver solver(std::move(fn));
+          [](HqpTick& tick, ConstVec q, ConstVec v, double t, nb::callable fn,
+             NativeSolvers* natives) {
+            PyLevelSolver solver(std::move(fn), natives);
             return tick.run(q, v, t, solver);
           },
-          nb::arg("q").noconvert(), nb::arg("v").noconvert(), nb::arg("t"), nb::arg("solve"))
+          nb::arg("q").noconvert(), nb::arg("v").noconvert(), nb::arg("t"), nb::arg("solve"),
+          nb::arg("natives").none() = nb::none())
       .def_prop_ro("handles", &HqpTick::handles)
       .def("slot", [](const HqpTick& t, int i) -> QpBuffers& { return slot_of(t.hierarchy(), i); },
            nb::arg("i"), kView)

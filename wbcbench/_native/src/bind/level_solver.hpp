@@ -1,4 +1,5 @@
-// The LevelSolver of every native hierarchy tick: a Python callable (controllers/native.py's
+// The LevelSolver of every native hierarchy tick: the handles with a solver of their own
+// (NativeSolvers) solve in C++, the others through a Python callable (controllers/native.py's
 // LevelSolve) that solves a slot's QP through the registry's lean path.
 #pragma once
 
@@ -7,16 +8,20 @@
 
 #include "bind/bind.hpp"
 #include "qp/hierarchy.hpp"
+#include "qp/native_solvers.hpp"
 
 namespace wbcbench {
 
 // A LevelSolver over a Python callable fn(pool, handle, slot, reshaped, level) that solves the
-// slot's QP and returns None (failed) or (x, z), z None when the backend gives no duals.
+// slot's QP and returns None (failed) or (x, z), z None when the backend gives no duals; the
+// handles `natives` covers (when given) never reach it.
 class PyLevelSolver : public LevelSolver {
  public:
-  explicit PyLevelSolver(nb::callable fn) : fn_(std::move(fn)) {}
+  PyLevelSolver(nb::callable fn, NativeSolvers* natives) : fn_(std::move(fn)), natives_(natives) {}
   bool solve(int pool, int handle, int slot, bool reshaped, const std::string& level,
-             const QpBuffers& /*qp*/, Vector& x, Vector& z, bool& has_z) override {
+             const QpBuffers& qp, Vector& x, Vector& z, bool& has_z) override {
+    if (natives_ != nullptr && natives_->covers(pool, handle))
+      return natives_->solve(pool, handle, level, qp, x, z, has_z);
     nb::object answer = fn_(pool, handle, slot, reshaped, level);
     if (answer.is_none()) return false;
     nb::tuple pair = nb::cast<nb::tuple>(answer);
@@ -28,6 +33,7 @@ class PyLevelSolver : public LevelSolver {
 
  private:
   nb::callable fn_;
+  NativeSolvers* natives_;
 };
 
 }  // namespace wbcbench

@@ -33,6 +33,7 @@ void bind_rc_lqp(nb::module_& m) {
       .def_rw("lqp2_energy", &RcLqpSettings::lqp2_energy)
       .def_rw("diagnostics", &RcLqpSettings::diagnostics)
       .def_rw("coupling_tol", &RcLqpSettings::coupling_tol)
+      .def_rw("wrench_tol", &RcLqpSettings::wrench_tol)
       .def_rw("infeasible_coupling", &RcLqpSettings::infeasible_coupling);
 
   nb::class_<RcLqpTick, Tick>(m, "RcLqpTick", "The reduced-centroidal LQP's tick.")
@@ -42,11 +43,13 @@ void bind_rc_lqp(nb::module_& m) {
       .def("configure", &RcLqpTick::configure, nb::arg("settings"), nb::arg("rc"))
       .def(
           "run",
-          [](RcLqpTick& tick, ConstVec q, ConstVec v, double t, nb::callable fn) {
-            PyLevelSolver solver(std::move(fn));
+          [](RcLqpTick& tick, ConstVec q, ConstVec v, double t, nb::callable fn,
+             NativeSolvers* natives) {
+            PyLevelSolver solver(std::move(fn), natives);
             return tick.run(q, v, t, solver);
           },
-          nb::arg("q").noconvert(), nb::arg("v").noconvert(), nb::arg("t"), nb::arg("solve"))
+          nb::arg("q").noconvert(), nb::arg("v").noconvert(), nb::arg("t"), nb::arg("solve"),
+          nb::arg("natives").none() = nb::none())
       .def("handles", &RcLqpTick::handles, nb::arg("pool"))
       .def(
           "slot",
@@ -61,6 +64,7 @@ void bind_rc_lqp(nb::module_& m) {
       .def_prop_ro("replanned", &RcLqpTick::replanned)
       .def_prop_ro("fell_back", &RcLqpTick::fell_back)
       .def_prop_ro("base_residual", &RcLqpTick::base_residual)
+      .def_prop_ro("wrench_residual", &RcLqpTick::wrench_residual)
       .def_prop_ro("coupling_residual", &RcLqpTick::coupling_residual)
       .def_prop_ro("assembly_diff", &RcLqpTick::assembly_diff)
       .def_prop_ro("coupling_violation", &RcLqpTick::coupling_violation)

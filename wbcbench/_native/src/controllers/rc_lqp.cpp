@@ -500,6 +500,13 @@ bool RcLqpTick::replan(LevelSolver& solver) {
   return r2_.ok;
 }
 
+// rc_lqp.wrench_violation
+double RcLqpTick::wrench_violation(const Vector& f) {
+  if (s_.Cw.rows() == 0) return 0.0;
+  cw_f_.noalias() = s_.Cw * f;
+  return std::max({0.0, (s_.lw - cw_f_).maxCoeff(), (cw_f_ - s_.uw).maxCoeff()});
+}
+
 // RcLqp._assemble: (q̈, f, Γ) of the combined solution and why the step must not be trusted
 // ("" if it may)
 std::string RcLqpTick::assemble(const Vector& x1, const Vector* x2, Vector& qdd, Vector& f,
@@ -547,6 +554,9 @@ std::string RcLqpTick::assemble(const Vector& x1, const Vector* x2, Vector& qdd,
   }
   const double excess = (tau.cwiseAbs() - s_.tau_max * (1.0 + tol)).maxCoeff();
   if (why.empty() && excess > tol) why = "torque limit exceeded by " + g3(excess) + " N·m";
+  d.wrench_residual = wrench_violation(f);
+  if (why.empty() && d.wrench_residual > rc_.wrench_tol * std::max(1.0, max_abs(f)))
+    why = "wrench inequalities broken by " + g3(d.wrench_residual);
   return why;
 }
 
@@ -564,6 +574,7 @@ bool RcLqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
   retries_ = 0;
   replanned_ = fell_back_ = false;
   base_residual_ = coupling_residual_ = assembly_diff_ = coupling_violation_ = kNaN;
+  wrench_residual_ = kNaN;
   reduced_time_ = lqp1_time_ = lqp2_time_ = fallback_time_ = 0.0;
   solver_seconds_ = 0.0;
   const auto done = [&](bool ok) {
@@ -625,6 +636,7 @@ bool RcLqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
       v1_.noalias() -= dyn_.contact_jacobian().leftCols(6).transpose() * wrench_;
       diag.base_residual = max_abs(v1_);
       diag.coupling_residual = kNaN;
+      diag.wrench_residual = wrench_violation(wrench_);
     }
   }
   if (!why.empty()) {
@@ -632,6 +644,7 @@ bool RcLqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
     return done(false);
   }
   base_residual_ = diag.base_residual;
+  wrench_residual_ = diag.wrench_residual;
   coupling_residual_ = diag.coupling_residual;
   assembly_diff_ = diag.assembly_diff;
   return done(true);

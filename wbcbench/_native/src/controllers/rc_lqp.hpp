@@ -31,6 +31,7 @@ struct RcLqpSettings {
   Lqp2Energy lqp2_energy = Lqp2Energy::kWhole;
   bool diagnostics = false;  // assembly_diff under the exact assembly
   double coupling_tol = 1e-6;
+  double wrench_tol = 1e-3;  // relative to max(1, |f|_inf)
   InfeasibleCoupling infeasible_coupling = InfeasibleCoupling::kReplan;
 };
 
@@ -79,6 +80,7 @@ class RcLqpTick : public Tick {
   bool fell_back() const { return fell_back_; }
   // the diagnostics of the step (NaN where the reference has no such key)
   double base_residual() const { return base_residual_; }
+  double wrench_residual() const { return wrench_residual_; }
   double coupling_residual() const { return coupling_residual_; }
   double assembly_diff() const { return assembly_diff_; }
   double coupling_violation() const { return coupling_violation_; }
@@ -106,6 +108,7 @@ class RcLqpTick : public Tick {
  private:
   struct Diagnostics {
     double base_residual = 0.0, coupling_residual = 0.0, assembly_diff = 0.0;
+    double wrench_residual = 0.0;
   };
 
   void classify();
@@ -122,6 +125,8 @@ class RcLqpTick : public Tick {
                              const Vector& x1, LevelSolver& solver);
   bool plan(bool level, bool target, LevelSolver& solver);
   bool replan(LevelSolver& solver);
+  // how far f is outside the contacts' inequalities lw <= Cw f <= uw (0 inside)
+  double wrench_violation(const Vector& f);
   std::string assemble(const Vector& x1, const Vector* x2, Vector& qdd, Vector& f, Vector& tau,
                        Diagnostics& d);
   bool fail(const std::string& prefix, const HierarchyResult& result);
@@ -160,7 +165,8 @@ class RcLqpTick : public Tick {
   int retries_ = 0;
   bool replanned_ = false, fell_back_ = false;
   double base_residual_ = 0.0, coupling_residual_ = 0.0, assembly_diff_ = 0.0;
-  double coupling_violation_ = 0.0;
+  double coupling_violation_ = 0.0, wrench_residual_ = 0.0;
+  Vector cw_f_;  // Cw f (wrench_violation)
   std::string message_, failed_level_;
   bool level_failed_ = false;
   double reduced_time_ = 0.0, lqp1_time_ = 0.0, lqp2_time_ = 0.0, fallback_time_ = 0.0;

@@ -1,0 +1,100 @@
+"""The QP solvers the native module calls from C++ (``QPSolver.native_solver``) against the
+Python backends they mirror: the same library, settings and update policy, so on the same
+sequence of QPs the same answers, iteration counts and statuses, in every mode."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from wbcbench import _native
+from wbcbench.controllers.native import qp_view
+from wbcbench.qp import Problem, make_solver
+from wbcbench.qp.settings import MODES
+
+pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
+
+#: (solver, tier) pairs that have a C++ counterpart
+CASES = [("osqp", "default"), ("osqp", "high"), ("osqp_libdwbc", "default")]
+
+
+def sequence(rng: np.random.Generator, n: int, n_eq: int, n_in: int, box: bool) -> list[Problem]:
+    """A drifting sequence of feasible QPs, as a controller's ticks make them: the same
+    structure, values moving a little; an entry of A and of H turns zero and back (a new
+    sparsity pattern for a sparse backend) and one QP is infeasible."""
+    L = rng.standard_normal((n, n)) / np.sqrt(n)
+    H0 = L @ L.T + 0.1 * np.eye(n)
+    A0 = rng.standard_normal((n_eq, n))
+    C0 = rng.standard_normal((n_in, n))
+    x_feas = rng.standard_normal(n) * 0.1
+    out = []
+    for k in range(24):
+        d = 0.01 * k
+        H = H0 + d * np.diag(np.arange(n) / n)
+        A = A0 + d * 0.1
+        C = C0 - d * 0.05
+        if k in (8, 9):
+            A[0, 0] = 0.0
+            H[0, 1] = H[1, 0] = 0.0
+        b = A @ x_feas
+        cx = C @ x_feas
+        l_ = cx - 0.05 - 0.1 * rng.random(n_in)
+        u_ = cx + 0.05 + 0.1 * rng.random(n_in)
+        l_[:2] = u_[:2] = cx[:2]  # equal sides (an equality written as an inequality)
+        l_[2] = -np.inf
+        g = rng.standard_normal(n)
+        lb = ub = None
+        if box:
+            lb, ub = x_feas - 0.2, x_feas + 0.2
+        if k == 15:  # infeasible: two equal rows of A with different right-hand sides
+            A[1] = A[0]
+            b[1] = b[0] + 1.0
+        out.append(Problem(H, g, A, b, C, l_, u_, lb, ub, name="seq"))
+    return out
+
+
+def fill(buf: Any, problem: Problem) -> None:
+    buf.resize(problem.n, problem.n_eq, problem.n_in, problem.has_box)
+    view = qp_view(buf, "seq")
+    for key in ("H", "g", "A", "b", "C", "l", "u"):
+        getattr(view, key)[...] = getattr(problem, key)
+    if problem.has_box:
+        view.lb[...], view.ub[...] = problem.box()
+
+
+@pytest.mark.parametrize("box", [False, True], ids=["no-box", "box"])
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize(("solver", "tier"), CASES, ids=[f"{s}-{t}" for s, t in CASES])
+def test_native_solver_equals_python(solver: str, tier: str, mode: str, box: bool) -> None:
+    py = make_solver(solver, tier=tier, mode=mode if solver != "osqp_libdwbc" else "hot")
+    cpp = py.native_solver()
+    assert cpp is not None
+    buf = _native._core.QpBuffers()
+    rng = np.random.default_rng(3)
+    statuses = set()
+    for problem in sequence(rng, 30, 6, 20, box):
+        fill(buf, problem)
+        a = py.solve(problem, lean=True)
+        status, iterations, _, _, internal, call, rebuilt, message = cpp.solve(buf)
+        statuses.add(status)
+        assert (status, iterations, rebuilt) == (a.status.value, a.iterations, a.rebuilt)
+        assert message == a.message
+        assert internal >= 0.0 and call > 0.0
+        if a.success:
+            assert a.x is not None
+            np.testing.assert_allclose(cpp.x, a.x, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(cpp.y, a.y, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(cpp.z, a.z, rtol=0, atol=1e-12)
+            if box:
+                np.testing.assert_allclose(cpp.z_box, a.z_box, rtol=0, atol=1e-12)
+    assert "solved" in statuses and len(statuses) > 1  # the infeasible QP failed in both
+    assert cpp.builds == py.builds
+
+
+def test_unknown_setting_stays_in_python() -> None:
+    py = make_solver("osqp", solver_type="direct")
+    assert py.native_solver() is None
+    with pytest.raises(ValueError, match="osqp has no setting 'nope'"):
+        _native._core.OsqpSolver("hot", {"nope": 1.0})

@@ -1,0 +1,84 @@
+// The QP solvers the module calls from C++ (src/qp/solver.hpp) and the set of them a hierarchy
+// tick's level solves use (src/qp/native_solvers.hpp).
+#include <nanobind/eigen/dense.h>
+#include <nanobind/stl/map.h>
+#include <nanobind/stl/shared_ptr.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <stdexcept>
+
+#include "bind/bind.hpp"
+#include "qp/native_solvers.hpp"
+#include "qp/osqp_solver.hpp"
+
+namespace wbcbench {
+
+namespace {
+
+SolveMode mode_of(const std::string& mode) {
+  if (mode == "cold") return SolveMode::kCold;
+  if (mode == "warm") return SolveMode::kWarm;
+  if (mode == "hot") return SolveMode::kHot;
+  throw std::invalid_argument("unknown mode '" + mode + "'; valid choices: cold, warm, hot");
+}
+
+// a record as the Python timer takes it
+nb::tuple record_tuple(const NativeSolvers::Record& r) {
+  const QpOutcome& o = r.outcome;
+  return nb::make_tuple(r.pool, r.handle, r.level, status_name(o.status), o.iterations, o.setup,
+                        o.wall, o.internal, o.call, o.rebuilt, o.message);
+}
+
+}  // namespace
+
+void bind_solvers(nb::module_& m) {
+  nb::class_<QpSolver>(m, "QpSolver", "A QP solver called from C++ (the lean path's mirror).")
+      .def(
+          "solve",
+          [](QpSolver& s, const QpBuffers& qp) {
+            const QpOutcome& o = s.solve(qp);
+            return nb::make_tuple(status_name(o.status), o.iterations, o.setup, o.wall,
+                                  o.internal, o.call, o.rebuilt, o.message);
+          },
+          nb::arg("qp"))
+      .def_prop_ro("x", [](const QpSolver& s) -> const Vector& { return s.solution().x; }, kView)
+      .def_prop_ro(
+          "y", [](const QpSolver& s) { return s.solution().has_y ? nb::cast(s.solution().y) : nb::none(); })
+      .def_prop_ro(
+          "z", [](const QpSolver& s) { return s.solution().has_z ? nb::cast(s.solution().z) : nb::none(); })
+      .def_prop_ro("z_box",
+                   [](const QpSolver& s) {
+                     return s.solution().has_z_box ? nb::cast(s.solution().z_box) : nb::none();
+                   })
+      .def_prop_ro("builds", &QpSolver::builds)
+      .def("reset", &QpSolver::reset);
+
+  nb::class_<OsqpSolver, QpSolver>(m, "OsqpSolver", "OSQP (C API), as wbcbench.qp's osqp.")
+      .def(
+          "__init__",
+          [](OsqpSolver* self, const std::string& mode, const OsqpOptions& options,
+             bool send_all) { new (self) OsqpSolver(mode_of(mode), options, send_all); },
+          nb::arg("mode"), nb::arg("options"), nb::arg("send_all") = false);
+  m.def("osqp_setting_names", &osqp_setting_names);
+
+  nb::class_<NativeSolvers>(m, "NativeSolvers",
+                            "The level solves of a hierarchy tick that stay in C++.")
+      .def(nb::init<>())
+      .def("set", &NativeSolvers::set, nb::arg("pool"), nb::arg("handle"), nb::arg("solver"))
+      .def("covers", &NativeSolvers::covers, nb::arg("pool"), nb::arg("handle"))
+      .def("clear", &NativeSolvers::clear)
+      .def("reset", &NativeSolvers::reset)
+      .def("records",
+           [](const NativeSolvers& s) {
+             nb::list out;
+             for (const auto& r : s.records()) out.append(record_tuple(r));
+             return out;
+           })
+      .def("failure", [](const NativeSolvers& s) -> nb::object {
+        const auto* r = s.failure();
+        return r == nullptr ? nb::none() : nb::object(record_tuple(*r));
+      });
+}
+
+}  // namespace wbcbench

@@ -1,0 +1,35 @@
+#include "qp/native_solvers.hpp"
+
+namespace wbcbench {
+
+void NativeSolvers::set(int pool, int handle, std::shared_ptr<QpSolver> solver) {
+  solvers_[{pool, handle}] = std::move(solver);
+}
+
+void NativeSolvers::clear() {
+  records_.clear();
+  failed_ = -1;
+}
+
+void NativeSolvers::reset() {
+  clear();
+  for (auto& [key, solver] : solvers_) solver->reset();
+}
+
+bool NativeSolvers::solve(int pool, int handle, const std::string& level, const QpBuffers& qp,
+                          Vector& x, Vector& z, bool& has_z) {
+  QpSolver& solver = *solvers_.at({pool, handle});
+  const QpOutcome& outcome = solver.solve(qp);
+  records_.push_back({pool, handle, level, outcome});
+  if (!outcome.success()) {
+    failed_ = static_cast<int>(records_.size()) - 1;
+    return false;
+  }
+  const QpSolution& sol = solver.solution();
+  x = sol.x;
+  has_z = sol.has_z;
+  if (has_z) z = sol.z;
+  return true;
+}
+
+}  // namespace wbcbench
