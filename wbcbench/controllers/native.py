@@ -194,18 +194,43 @@ def set_limits(settings: Any, tau_max: Any, Cw: Any, lw: Any, uw: Any, n_wrench:
 NAN_MESSAGE = "the QP holds a NaN (state or references not finite)"
 
 
+class QpCall:
+    """One QP of a native tick that Python steps through (``qp_wbc``, ``to_osf``, each level of
+    ``osf_hqp``) and the solver handle that solves it: in C++ through the handle's counterpart
+    (:meth:`~wbcbench.qp.QPSolver.native_solver`) with ``solver_calls="native"``, where the
+    module links the backend and the run keeps no problems, else through the handle's lean
+    path. ``problem`` is the Problem view of the buffers either way."""
+
+    def __init__(
+        self, buffers: Any, name: str, handle: Any, solver_calls: str = "python", keep: bool = False
+    ) -> None:
+        self.buffers = buffers
+        self.problem = qp_view(buffers, name)
+        self.handle = handle
+        self.cpp = handle.native_solver() if solver_calls == "native" and not keep else None
+
+    def solve(self, timer: SolveTimes, level: str | None = None) -> tuple[Any, Solution]:
+        """Solve the QP the tick has built; ``(x, solution)``, x None when it failed."""
+        if self.cpp is None:
+            sol = self.handle.solve(self.problem, lean=True)
+            timer.add_solution(sol, level)
+            return (sol.x if sol.success and sol.x is not None else None), sol
+        sol = solution_of(self.handle, self.cpp.solve(self.buffers))
+        timer.add_solution(sol, level)
+        return (self.cpp.x if sol.success else None), sol
+
+
 def single_qp_region(
-    tick: Any, problem: Problem, solver: Any, q: Any, v: Any, t: float, timer: NativeTimer
+    tick: Any, call: QpCall, q: Any, v: Any, t: float, timer: NativeTimer
 ) -> str | None:
-    """The timed region of a native tick with one QP: build, solve through the lean path,
-    finish. Returns None, or the message of a failed tick."""
+    """The timed region of a native tick with one QP: build, solve, finish. Returns None, or
+    the message of a failed tick."""
     if not tick.build(q, v, t):
         return NAN_MESSAGE
-    sol = solver.solve(problem, lean=True)
-    timer.add_solution(sol)
-    if not sol.success or sol.x is None:
+    x, sol = call.solve(timer)
+    if x is None:
         return f"{sol.solver}: {sol.status.value}: {sol.message}"
-    tick.finish(sol.x)
+    tick.finish(x)
     return None
 
 
@@ -297,10 +322,16 @@ class LevelSolve:
 
 
 def native_solution(pools: list[list[Any]], record: tuple[Any, ...]) -> Solution:
-    """A C++ solve's record ``(pool, handle, level, status, iterations, setup, wall, internal,
-    call, rebuilt, message)`` as the Solution the Python path would have reported (no x)."""
-    pool, handle, _, status, iterations, setup, wall, internal, call, rebuilt, message = record
-    solver = pools[pool][handle]
+    """A C++ level solve's record ``(pool, handle, level, *outcome)`` as a Solution."""
+    pool, handle, _, *outcome = record
+    return solution_of(pools[pool][handle], tuple(outcome))
+
+
+def solution_of(handle: Any, outcome: tuple[Any, ...]) -> Solution:
+    """A C++ solve's outcome ``(status, iterations, setup, wall, internal, call, rebuilt,
+    message)`` by ``handle``'s counterpart, as the Solution the handle would have reported (no
+    x: the tick reads the C++ solver's)."""
+    status, iterations, setup, wall, internal, call, rebuilt, message = outcome
     return Solution(
         status=SolutionStatus(status),
         iterations=None if iterations < 0 else iterations,
@@ -308,11 +339,11 @@ def native_solution(pools: list[list[Any]], record: tuple[Any, ...]) -> Solution
         setup_time=setup,
         call_time=call,
         internal_time=None if internal != internal else internal,
-        internal_time_covers=solver.internal_time_covers,
-        solver=solver.name,
-        mode=solver.mode,
+        internal_time_covers=handle.internal_time_covers,
+        solver=handle.name,
+        mode=handle.mode,
         message=message,
-        tier=solver.tier,
+        tier=handle.tier,
         rebuilt=rebuilt,
     )
 

@@ -66,6 +66,7 @@ class OsfHqp(OsfControllerBase):
         Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
         self.WtW = Wc.T @ Wc
         self.problems: list[Problem] = []  # the native QPs' views, made at start()
+        self.calls: list[native.QpCall] = []
 
     def native_settings(self, s: Any) -> None:
         s.regularization = self.config.regularization
@@ -76,7 +77,19 @@ class OsfHqp(OsfControllerBase):
         super().make_native()
         tick = self.native_tick
         names = [f"T{i + 1}" for i in range(len(self.levels))] + ["wrench"]
-        self.problems = [native.qp_view(tick.qp(i), names[i]) for i in range(tick.n_qps)]
+        solvers = [*self.solvers, self.final_solver]
+        L = len(self.levels)
+        self.calls = [
+            native.QpCall(
+                tick.qp(i),
+                names[i],
+                solvers[min(i, L)],
+                self.config.solver_calls,
+                self.ctx.keep_problems,
+            )
+            for i in range(tick.n_qps)
+        ]
+        self.problems = [call.problem for call in self.calls]
 
     def native_region(
         self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
@@ -85,23 +98,21 @@ class OsfHqp(OsfControllerBase):
         or the message of a failed tick, and the QPs it solved."""
         tick = self.native_tick
         L = len(self.levels)
-        solvers = [*self.solvers, self.final_solver]
         used: list[Problem] = []
         if not tick.build(q, v, t):
             return tick.message or native.NAN_MESSAGE, used
-        for i, problem in enumerate(self.problems):
+        for i, call in enumerate(self.calls):
             level = f"T{i + 1}" if i < L else "wrench"
-            used.append(problem)
-            sol = solvers[min(i, L)].solve(problem, lean=True)
-            timer.add_solution(sol, level)
-            if not sol.success or sol.x is None:
+            used.append(call.problem)
+            x, sol = call.solve(timer, level)
+            if x is None:
                 where = f"level {level}" if i < L else "wrench level"
                 return f"{where}: {sol.solver}: {sol.status.value}: {sol.message}", used
             if i < L:
-                if not tick.level(i, sol.x):
+                if not tick.level(i, x):
                     return native.NAN_MESSAGE, used
             else:
-                tick.finish(sol.x)
+                tick.finish(x)
         if len(self.problems) == L:
             tick.finish(np.zeros(0))
         return None, used

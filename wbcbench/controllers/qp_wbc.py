@@ -120,7 +120,10 @@ class QpWbc(Controller):
         native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
         self.native_tick = tick
-        self.problem = native.qp_view(tick.qp, "qp_wbc")
+        self.call = native.QpCall(
+            tick.qp, "qp_wbc", self.solver, cfg.solver_calls, self.ctx.keep_problems
+        )
+        self.problem = self.call.problem
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
@@ -224,7 +227,7 @@ class QpWbc(Controller):
         """The timed region of a native step: build, solve through the lean path, finish.
         Returns None, or the message of a failed tick."""
         assert self.problem is not None
-        return native.single_qp_region(self.native_tick, self.problem, self.solver, q, v, t, timer)
+        return native.single_qp_region(self.native_tick, self.call, q, v, t, timer)
 
     def _step_native(self, state: RobotState, t: float) -> ControlOutput:
         """The same step on the native tick (see :meth:`native_region`)."""

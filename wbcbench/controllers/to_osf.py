@@ -391,7 +391,14 @@ class ToOsf(OsfControllerBase):
 
     def make_native(self) -> None:
         super().make_native()
-        self.problem = native.qp_view(self.native_tick.qp, "to_osf")
+        self.call = native.QpCall(
+            self.native_tick.qp,
+            "to_osf",
+            self.solver,
+            self.config.solver_calls,
+            self.ctx.keep_problems,
+        )
+        self.problem = self.call.problem
 
     def native_region(
         self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
@@ -399,7 +406,7 @@ class ToOsf(OsfControllerBase):
         """The timed region of a native step: build, solve through the lean path, finish.
         Returns None, or the message of a failed tick."""
         assert self.problem is not None
-        return native.single_qp_region(self.native_tick, self.problem, self.solver, q, v, t, timer)
+        return native.single_qp_region(self.native_tick, self.call, q, v, t, timer)
 
     def _step_native(self, state: RobotState, t: float) -> ControlOutput:
         """The same step on the native tick (see :meth:`native_region`)."""
