@@ -11,6 +11,7 @@
 #include "bind/bind.hpp"
 #include "qp/native_solvers.hpp"
 #include "qp/osqp_solver.hpp"
+#include "qp/qpoases_solver.hpp"
 
 namespace wbcbench {
 
@@ -61,6 +62,15 @@ void bind_solvers(nb::module_& m) {
              bool send_all) { new (self) OsqpSolver(mode_of(mode), options, send_all); },
           nb::arg("mode"), nb::arg("options"), nb::arg("send_all") = false);
   m.def("osqp_setting_names", &osqp_setting_names);
+
+  nb::class_<QpOasesSolver, QpSolver>(m, "QpOasesSolver",
+                                      "qpOASES (cmeel-qpoases), as wbcbench.qp's qpoases (CasADi).")
+      .def(
+          "__init__",
+          [](QpOasesSolver* self, const std::string& mode, const QpOasesOptions& options) {
+            new (self) QpOasesSolver(mode_of(mode), options);
+          },
+          nb::arg("mode"), nb::arg("options") = QpOasesOptions());
 
   nb::class_<NativeSolvers>(m, "NativeSolvers",
                             "The level solves of a hierarchy tick that stay in C++.")
