@@ -49,9 +49,9 @@ class NativeConfig(ControllerConfig):
     solver_calls: Literal["native", "python"] = Field(
         "native",
         description="impl native, hierarchical controllers (hqp, lqp, rc_lqp): call the QP "
-        "backend from C++ where the module links its library (osqp, osqp_libdwbc), or every "
-        "level QP through the Python solver handle's lean path; backends the module does not "
-        "link always go through Python",
+        "backend from C++ where the module links its library (osqp, osqp_libdwbc, qpoases), or "
+        "every level QP through the Python solver handle's lean path; backends the module does "
+        "not link always go through Python",
     )
 
 
