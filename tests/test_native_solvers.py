@@ -16,8 +16,19 @@ from wbcbench.qp.settings import MODES
 
 pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
 
-#: (solver, tier) pairs that have a C++ counterpart
-CASES = [("osqp", "default"), ("osqp", "high"), ("osqp_libdwbc", "default")]
+#: (solver, tier) pairs that have a C++ counterpart (qpoases runs every tier with its default
+#: settings: one tier covers it)
+CASES = [
+    ("osqp", "default"),
+    ("osqp", "high"),
+    ("osqp_libdwbc", "default"),
+    ("qpoases", "default"),
+]
+
+#: how far the C++ x, y, z, z_box may be from the Python ones: the same OSQP code gives the same
+#: bits; cmeel's qpOASES multiplies with its own loops where CasADi's calls OpenBLAS, which moves
+#: round-off (measured on this sequence: at most 7.3e-15, every mode)
+ATOL = {"qpoases": 1e-10}
 
 
 def sequence(rng: np.random.Generator, n: int, n_eq: int, n_in: int, box: bool) -> list[Problem]:
@@ -84,11 +95,12 @@ def test_native_solver_equals_python(solver: str, tier: str, mode: str, box: boo
         assert internal >= 0.0 and call > 0.0
         if a.success:
             assert a.x is not None
-            np.testing.assert_allclose(cpp.x, a.x, rtol=0, atol=1e-12)
-            np.testing.assert_allclose(cpp.y, a.y, rtol=0, atol=1e-12)
-            np.testing.assert_allclose(cpp.z, a.z, rtol=0, atol=1e-12)
+            atol = ATOL.get(solver, 1e-12)
+            np.testing.assert_allclose(cpp.x, a.x, rtol=0, atol=atol)
+            np.testing.assert_allclose(cpp.y, a.y, rtol=0, atol=atol)
+            np.testing.assert_allclose(cpp.z, a.z, rtol=0, atol=atol)
             if box:
-                np.testing.assert_allclose(cpp.z_box, a.z_box, rtol=0, atol=1e-12)
+                np.testing.assert_allclose(cpp.z_box, a.z_box, rtol=0, atol=atol)
     assert "solved" in statuses and len(statuses) > 1  # the infeasible QP failed in both
     assert cpp.builds == py.builds
 
@@ -98,3 +110,78 @@ def test_unknown_setting_stays_in_python() -> None:
     assert py.native_solver() is None
     with pytest.raises(ValueError, match="osqp has no setting 'nope'"):
         _native._core.OsqpSolver("hot", {"nope": 1.0})
+    assert make_solver("qpoases", nWSR=10).native_solver() is None
+    with pytest.raises(ValueError, match="qpoases \\(native\\) takes no setting 'nWSR'"):
+        _native._core.QpOasesSolver("hot", {"CPUtime": 5.0, "nWSR": 10.0})
+
+
+@pytest.mark.parametrize("mode", ["cold", "hot"])
+def test_qpoases_box_only(mode: str) -> None:
+    """No constraint rows: CasADi solves with a QProblemB, initialised again on every call (never
+    hot-started), and so does the C++ one."""
+    rng = np.random.default_rng(5)
+    n = 12
+    L = rng.standard_normal((n, n)) / np.sqrt(n)
+    H0 = L @ L.T + 0.1 * np.eye(n)
+    empty = np.zeros((0, n))
+    py = make_solver("qpoases", mode=mode)
+    cpp = py.native_solver()
+    buf = _native._core.QpBuffers()
+    for k in range(8):
+        problem = Problem(
+            H0 + 0.01 * k * np.eye(n),
+            rng.standard_normal(n),
+            empty,
+            np.zeros(0),
+            empty,
+            np.zeros(0),
+            np.zeros(0),
+            np.full(n, -0.3),
+            np.full(n, 0.3),
+            name="box",
+        )
+        fill(buf, problem)
+        a = py.solve(problem, lean=True)
+        status, iterations, _, _, _, _, rebuilt, message = cpp.solve(buf)
+        assert (status, iterations, rebuilt, message) == (
+            a.status.value,
+            a.iterations,
+            a.rebuilt,
+            a.message,
+        )
+        assert a.success and a.x is not None and a.z_box is not None
+        np.testing.assert_allclose(cpp.x, a.x, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(cpp.z_box, a.z_box, rtol=0, atol=1e-10)
+    assert cpp.builds == py.builds
+
+
+@pytest.mark.parametrize("mode", ["cold", "hot"])
+def test_qpoases_ill_posed_bounds(mode: str) -> None:
+    """Bounds CasADi refuses (lower above upper): a failed solve on both sides, the C++ message
+    being the end of CasADi's exception text, and no object kept."""
+    rng = np.random.default_rng(1)
+    n = 4
+    problem = Problem(
+        np.eye(n),
+        rng.standard_normal(n),
+        rng.standard_normal((1, n)),
+        np.zeros(1),
+        rng.standard_normal((2, n)),
+        np.array([0.5, -1.0]),
+        np.array([0.2, 1.0]),
+        name="ill",
+    )
+    py = make_solver("qpoases", mode=mode)
+    cpp = py.native_solver()
+    buf = _native._core.QpBuffers()
+    fill(buf, problem)
+    a = py.solve(problem, lean=True)
+    status, *_, message = cpp.solve(buf)
+    assert status == a.status.value == "failed"
+    # row 1 of [A; C]: C's first row
+    assert message == (
+        "Ill-posed problem detected: LBA[1] <= UBA[1] was violated. "
+        "Got LBA[1] = 0.5 and UBA[1] = 0.2."
+    )
+    assert a.message.endswith(message)
+    assert cpp.builds == py.builds == 0

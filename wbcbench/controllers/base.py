@@ -49,9 +49,8 @@ class NativeConfig(ControllerConfig):
     solver_calls: Literal["native", "python"] = Field(
         "native",
         description="impl native: call the QP backend from C++ where the module links its "
-        "library (osqp, osqp_libdwbc), or every QP through the Python solver handle's lean "
-        "path; backends the module does not link always go through Python, and so does a run "
-        "that keeps its QPs (solver dumps)",
+        "library (osqp, osqp_libdwbc, qpoases), or every QP through the Python solver handle's "
+        "lean path; backends the module does not link always go through Python",
     )
 
 

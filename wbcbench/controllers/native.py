@@ -198,16 +198,14 @@ class QpCall:
     """One QP of a native tick that Python steps through (``qp_wbc``, ``to_osf``, each level of
     ``osf_hqp``) and the solver handle that solves it: in C++ through the handle's counterpart
     (:meth:`~wbcbench.qp.QPSolver.native_solver`) with ``solver_calls="native"``, where the
-    module links the backend and the run keeps no problems, else through the handle's lean
-    path. ``problem`` is the Problem view of the buffers either way."""
+    module links the backend, else through the handle's lean path. ``problem`` is the Problem
+    view of the buffers either way."""
 
-    def __init__(
-        self, buffers: Any, name: str, handle: Any, solver_calls: str = "python", keep: bool = False
-    ) -> None:
+    def __init__(self, buffers: Any, name: str, handle: Any, solver_calls: str = "python") -> None:
         self.buffers = buffers
         self.problem = qp_view(buffers, name)
         self.handle = handle
-        self.cpp = handle.native_solver() if solver_calls == "native" and not keep else None
+        self.cpp = handle.native_solver() if solver_calls == "native" else None
 
     def solve(self, timer: SolveTimes, level: str | None = None) -> tuple[Any, Solution]:
         """Solve the QP the tick has built; ``(x, solution)``, x None when it failed."""
@@ -246,8 +244,8 @@ class LevelSolve:
 
     With ``solver_calls="native"``, the handles whose backend the module links
     (:meth:`~wbcbench.qp.QPSolver.native_solver`) are solved in C++ instead (``natives``): the
-    tick never comes back here for them, and their records reach the timer after the tick. A
-    run that keeps its problems (solver dumps) solves through Python throughout.
+    tick never comes back here for them, and their records reach the timer after the tick
+    (with ``keep``, copies of their QPs too).
     """
 
     def __init__(
@@ -263,10 +261,11 @@ class LevelSolve:
         self.views: dict[tuple[int, int], Problem] = {}
         self.timer: SolveTimes | None = None
         self.failed: Any = None
-        self.kept: list[Problem] = []
+        self._kept: list[Problem] = []
         self.natives: Any = None
-        if solver_calls == "native" and not keep:
+        if solver_calls == "native":
             self.natives = core().NativeSolvers()
+            self.natives.set_keep(keep)
             for p, handles in enumerate(pools):
                 for i, handle in enumerate(handles):
                     solver = handle.native_solver()
@@ -277,7 +276,7 @@ class LevelSolve:
         """Before a tick: the timer its solutions go to."""
         self.timer = timer
         self.failed = None
-        self.kept = []
+        self._kept = []
         if self.natives is not None:
             self.natives.clear()
             timer.pending.append(self)
@@ -285,6 +284,14 @@ class LevelSolve:
     def run(self, tick: Any, q: Any, v: Any, t: float) -> bool:
         """The tick's ``run`` with this callback and the C++ solvers."""
         return bool(tick.run(q, v, t, self, self.natives))
+
+    @property
+    def kept(self) -> list[Problem]:
+        """Copies of the last tick's QPs, in the order solved (with ``keep``)."""
+        if self.natives is None or not self.keep:
+            return self._kept
+        copies = [frozen(qp_view(qp, level)) for level, qp in self.natives.kept()]
+        return copies or self._kept
 
     def flush(self, timer: SolveTimes) -> None:
         """The C++ solves of the last tick into ``timer`` (after the timed region)."""
@@ -302,7 +309,7 @@ class LevelSolve:
         if self.timer is not None:
             self.timer.add_solution(sol, level)
         if self.keep:
-            self.kept.append(frozen(problem))
+            self._kept.append(frozen(problem))
         if not sol.success or sol.x is None:
             self.failed = sol
             return None

@@ -85,7 +85,6 @@ class OsfHqp(OsfControllerBase):
                 names[i],
                 solvers[min(i, L)],
                 self.config.solver_calls,
-                self.ctx.keep_problems,
             )
             for i in range(tick.n_qps)
         ]

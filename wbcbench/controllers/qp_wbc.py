@@ -120,9 +120,7 @@ class QpWbc(Controller):
         native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
         self.native_tick = tick
-        self.call = native.QpCall(
-            tick.qp, "qp_wbc", self.solver, cfg.solver_calls, self.ctx.keep_problems
-        )
+        self.call = native.QpCall(tick.qp, "qp_wbc", self.solver, cfg.solver_calls)
         self.problem = self.call.problem
 
     def step(self, state: RobotState, t: float) -> ControlOutput:

@@ -396,7 +396,6 @@ class ToOsf(OsfControllerBase):
             "to_osf",
             self.solver,
             self.config.solver_calls,
-            self.ctx.keep_problems,
         )
         self.problem = self.call.problem
 

@@ -11,6 +11,10 @@ qpOASES, so ``warm`` runs ``cold``. Internal time: CasADi's ``t_wall_solver`` st
 qpOASES ``init``/``hotstart`` call, i.e. the solve). Tiers do not apply: qpOASES solves to its
 own round-off-level tolerances (``default`` settings in every tier). qpOASES prints a
 copyright banner when an object is built; this backend silences stdout during construction.
+
+No effective time cap: the tiers' ``CPUtime`` is passed, but CasADi's bundled qpOASES has no
+clock (its ``getCPUtime`` returns -1), so the cap never fires. The native counterpart
+(:meth:`QpOASESSolver.native_solver`) accepts it and does not pass it on, to the same effect.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from typing import Any
 import casadi as _casadi
 import numpy as np
 
+from wbcbench import _native
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Problem
 from wbcbench.qp.settings import TIER_TIME_LIMIT
@@ -82,6 +87,21 @@ class QpOASESSolver(QPSolver):
     @staticmethod
     def tier_caps(tier: str) -> dict[str, Any]:
         return {"CPUtime": TIER_TIME_LIMIT[tier]}
+
+    def native_solver(self) -> Any | None:
+        """qpOASES from C++ (cmeel-qpoases' library), called as CasADi calls it, in this
+        handle's mode; None when the module is not built or a setting other than the tier's
+        ``CPUtime`` is given. Results equal this backend's to round-off (CasADi's qpOASES
+        multiplies through OpenBLAS, cmeel's through its own loops)."""
+        core = _native._core
+        if core is None:
+            return None
+        options: dict[str, float] = {}
+        for key, value in self.options.items():
+            if key != "CPUtime" or not isinstance(value, bool | int | float):
+                return None
+            options[key] = float(value)
+        return core.QpOasesSolver(self.mode, options)
 
     def _build(self, problem: Problem) -> Any:
         m = problem.n_eq + problem.n_in

@@ -11,6 +11,7 @@
 #include "bind/bind.hpp"
 #include "qp/native_solvers.hpp"
 #include "qp/osqp_solver.hpp"
+#include "qp/qpoases_solver.hpp"
 
 namespace wbcbench {
 
@@ -62,12 +63,29 @@ void bind_solvers(nb::module_& m) {
           nb::arg("mode"), nb::arg("options"), nb::arg("send_all") = false);
   m.def("osqp_setting_names", &osqp_setting_names);
 
+  nb::class_<QpOasesSolver, QpSolver>(m, "QpOasesSolver",
+                                      "qpOASES (cmeel-qpoases), as wbcbench.qp's qpoases (CasADi).")
+      .def(
+          "__init__",
+          [](QpOasesSolver* self, const std::string& mode, const QpOasesOptions& options) {
+            new (self) QpOasesSolver(mode_of(mode), options);
+          },
+          nb::arg("mode"), nb::arg("options") = QpOasesOptions());
+
   nb::class_<NativeSolvers>(m, "NativeSolvers",
                             "The level solves of a hierarchy tick that stay in C++.")
       .def(nb::init<>())
       .def("set", &NativeSolvers::set, nb::arg("pool"), nb::arg("handle"), nb::arg("solver"))
       .def("covers", &NativeSolvers::covers, nb::arg("pool"), nb::arg("handle"))
       .def("clear", &NativeSolvers::clear)
+      .def("set_keep", &NativeSolvers::set_keep, nb::arg("keep"))
+      .def("kept",
+           [](const NativeSolvers& s) {
+             nb::list out;
+             for (const auto& r : s.records())
+               if (r.qp) out.append(nb::make_tuple(r.level, QpBuffers(*r.qp)));
+             return out;
+           })
       .def("reset", &NativeSolvers::reset)
       .def("records",
            [](const NativeSolvers& s) {

@@ -20,7 +20,8 @@ bool NativeSolvers::solve(int pool, int handle, const std::string& level, const 
                           Vector& x, Vector& z, bool& has_z) {
   QpSolver& solver = *solvers_.at({pool, handle});
   const QpOutcome& outcome = solver.solve(qp);
-  records_.push_back({pool, handle, level, outcome});
+  records_.push_back({pool, handle, level, outcome, nullptr});
+  if (keep_) records_.back().qp = std::make_shared<const QpBuffers>(qp);
   if (!outcome.success()) {
     failed_ = static_cast<int>(records_.size()) - 1;
     return false;

@@ -19,6 +19,7 @@ class NativeSolvers {
     int pool = 0, handle = 0;
     std::string level;
     QpOutcome outcome;
+    std::shared_ptr<const QpBuffers> qp;  // a copy of the QP, when keeping them
   };
 
   // solver for handle `handle` of pool `pool` (replacing any)
@@ -33,11 +34,14 @@ class NativeSolvers {
   // the record of the last failed solve, or null
   const Record* failure() const { return failed_ < 0 ? nullptr : &records_[failed_]; }
   void reset();  // every solver's QpSolver::reset
+  // keep a copy of every QP solved in its record (solver dumps; not for timing)
+  void set_keep(bool keep) { keep_ = keep; }
 
  private:
   std::map<std::pair<int, int>, std::shared_ptr<QpSolver>> solvers_;
   std::vector<Record> records_;
   int failed_ = -1;
+  bool keep_ = false;
 };
 
 }  // namespace wbcbench
