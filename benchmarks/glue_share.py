@@ -8,7 +8,7 @@ over recorded states in a child process that ``perf record`` samples only while 
 * ``pinocchio`` — libpinocchio and Pinocchio's templates compiled into the module;
 * ``linear algebra`` — Eigen's kernels in the module (GEMM, decompositions, triangular solves)
   and any BLAS / LAPACK library;
-* ``solver`` — the QP backend's own library;
+* ``solver`` — the QP backend's own library (OSQP's C functions, linked into the module);
 * ``module code`` — the module's own functions (the ticks' loops and copies, Eigen expressions
   inlined into them);
 * ``glue`` — everything else: the interpreter, NumPy, nanobind, the C library (allocation,
@@ -47,7 +47,12 @@ def classify(dso: str, symbol: str) -> str:
     if any(name in lib for name in SOLVER_LIBS):
         return "solver"
     if "_core" in lib:
-        return "linear algebra" if symbol.startswith("Eigen::") else "module code"
+        if symbol.startswith("Eigen::"):
+            return "linear algebra"
+        # the module's own code is C++ in namespaces; its C functions are OSQP's (linked in)
+        if "::" not in symbol and symbol[:1].isalpha():
+            return "solver"
+        return "module code"
     return "glue"
 
 
