@@ -19,8 +19,9 @@ rc_lqp's re-plans / full-model fallbacks included.
 
 Run with ``make bench-micro`` (pytest-benchmark cases) or ``python benchmarks/bench_rc_lqp.py``
 for the tables (the paper's setting, OSQP hot and the fastest installed backend);
-``--side-by-side`` prints only the paper-vs-modern table, ``--impl python`` times the Python
-reference instead of each controller's default impl.
+``--side-by-side`` prints only the paper-vs-modern table, ``--backends`` only the table of every
+installed backend with native beside python, ``--impl python`` times the Python reference
+instead of each controller's default impl.
 """
 
 from __future__ import annotations
@@ -75,14 +76,17 @@ def recording(scenario: str, robot: str = "") -> tuple[LoadedScenario, Recording
     return loaded, rec.window(START, TICKS)
 
 
-def _settings(controller: str, solver: str) -> RunSettings:
-    config = {"impl": IMPL} if IMPL else {}
+def _settings(controller: str, solver: str, impl: str | None = None) -> RunSettings:
+    impl = impl or IMPL
+    config = {"impl": impl} if impl else {}
     return RunSettings(controller=controller, solver=solver, mode="hot", controller_config=config)
 
 
-def run(scenario: str, controller: str, solver: str, robot: str = "") -> ReplayTimings:
+def run(
+    scenario: str, controller: str, solver: str, robot: str = "", impl: str | None = None
+) -> ReplayTimings:
     loaded, rec = recording(scenario, robot)
-    return replay(loaded, rec, _settings(controller, solver))
+    return replay(loaded, rec, _settings(controller, solver, impl))
 
 
 @dataclass
@@ -130,6 +134,7 @@ def columns(t: ReplayTimings) -> dict[str, float]:
         "avg": stat("total", np.mean),
         "max": stat("total", np.max),
         "median": stat("total", np.median),
+        "p99": stat("total", lambda x: np.percentile(x, 99)),
         "dyn": stat("reduced", np.mean),
         "lqp1": stat("lqp1", np.mean),
         "lqp2": stat("lqp2", np.mean),
@@ -244,6 +249,34 @@ def table3_side_by_side(paper: str = PAPER_SETTING, modern: str = MODERN) -> Non
         print(f"{support:<7} rc_lqp / lqp medians: {ours} (paper, from its avg: {p_ratio:.2f})")
 
 
+def per_backend(impls: tuple[str, ...] = ("native", "python")) -> None:
+    """Table 3's columns for every installed backend, native beside python: per support, lqp's
+    and rc_lqp's mean (avg), max and p99, rc_lqp's dyn calc, LQP 1 and LQP 2, the solver calls'
+    share of each (``solve``: set-up + solve, what the backend costs) and the ratios of the step
+    and of the solver calls alone (where the step shows no gain, the solver ratio says whether
+    the backend does)."""
+    print(f"\nTable 3 per backend, hot, {TICKS - WARMUP} recorded states, mean [µs]")
+    print(
+        f"{'backend':<13} {'impl':<6} {'sup':<6} {'lqp':>6} {'max':>6} {'p99':>6} | "
+        f"{'rc_lqp':>6} {'max':>6} {'p99':>6} {'dyn':>4} {'LQP1':>5} {'LQP2':>5} | "
+        f"{'solve lqp':>9} {'rc':>5} | {'step':>5} {'solve':>5}"
+    )
+    for solver in dict.fromkeys([*SIDE_BY_SIDE, *SOLVERS]):
+        for impl in impls:
+            for support, scenario in TABLE3.items():
+                c = {ctrl: columns(run(scenario, ctrl, solver, impl=impl)) for ctrl in CONTROLLERS}
+                a, r = c["lqp"], c["rc_lqp"]
+                fails = int(a["failures"] + r["failures"])
+                print(
+                    f"{solver:<13} {impl:<6} {support:<6} {a['avg']:6.0f} {a['max']:6.0f} "
+                    f"{a['p99']:6.0f} | {r['avg']:6.0f} {r['max']:6.0f} {r['p99']:6.0f} "
+                    f"{r['dyn']:4.0f} {r['lqp1']:5.0f} {r['lqp2']:5.0f} | {a['solve']:9.0f} "
+                    f"{r['solve']:5.0f} | {r['avg'] / a['avg']:5.2f} "
+                    f"{r['solve'] / a['solve']:5.2f}" + (f"  failures {fails}" if fails else "")
+                )
+    print("(paper, OSQP in C++: step 0.45 double, 0.33 single)")
+
+
 def dof_series(solver: str) -> None:
     impl = f", impl {IMPL}" if IMPL else ""
     print(f"\nDoF scaling (Fig. 5), double support — {solver}, hot{impl}, median [µs]")
@@ -274,9 +307,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--impl", choices=["native", "python"], help="the impl to time (default: each's own)"
     )
+    parser.add_argument(
+        "--backends",
+        action="store_true",
+        help="only the per-backend table (every installed backend, native beside python)",
+    )
     args = parser.parse_args(argv)
     IMPL = args.impl
     threadpool_limits(1)
+    if args.backends:
+        per_backend()
+        return
     if len(SIDE_BY_SIDE) == 2:
         table3_side_by_side()
     if args.side_by_side:
@@ -285,6 +326,7 @@ def main(argv: list[str] | None = None) -> None:
     tables = [s for s in dict.fromkeys([*SIDE_BY_SIDE, fastest]) if s in available_solvers()]
     for solver in tables:
         table3(solver)
+    per_backend()
     for solver in tables:
         dof_series(solver)
 

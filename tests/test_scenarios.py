@@ -111,7 +111,7 @@ def test_axes_invalid_for_the_task_type(tmp_path: Path) -> None:
 def test_controller_settings_are_validated(tmp_path: Path) -> None:
     assert error_of(BASE, ("controllers.qp_wbc.wieghts=[1, 2]",)) == (
         f"{BASE}: controllers.qp_wbc.wieghts: unknown key 'wieghts'; valid keys: "
-        "acceleration_weight, impl, torque_weight, variables, weights, wrench_weight"
+        "acceleration_weight, impl, solver_calls, torque_weight, variables, weights, wrench_weight"
     )
     assert error_of(BASE, ("controllers.qp_wbc.variables=half",)) == (
         f"{BASE}: controllers.qp_wbc.variables: invalid value 'half'; valid choices: 'full' or "
