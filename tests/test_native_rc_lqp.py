@@ -25,6 +25,10 @@ A backend may fail on a state in one impl and not the other (rounding-level diff
 data meet its stopping rule differently), or return a level solution that breaks the wrench
 inequalities or the q̈ limits without saying so (:func:`within_limits`), or one that the step's
 wrench check rejects in one impl only (a re-plan there): at most two of the four states.
+
+With ``coupling_priority``, LQP 1's re-solve is nearly degenerate and its optimum not unique:
+each impl's answer is checked for what the step promises, the slacks and τ not against the
+other's.
 """
 
 from __future__ import annotations
@@ -143,7 +147,12 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
     backend = solver.removeprefix("qpsolvers:")
     if case in SLOW.get(solver, set()):
         pytest.skip(f"{backend} runs for minutes on some of these states in either impl")
-    exact = backend in ACTIVE_SET
+    # coupling_priority's re-solve of LQP 1 is nearly degenerate: its optimum is not unique, and
+    # which one a backend lands on moves with round-off (measured: slacks 5e-3 apart with DAQP,
+    # τ 3e-3 apart with quadprog, depending on what the process ran before); there each impl's
+    # answer is checked for what the step promises, not against the other's
+    degenerate = bool(config.get("coupling_priority"))
+    exact = backend in ACTIVE_SET and not degenerate
     pair = controllers(case, solver, config)
     robot, loaded = pair["robot"], pair["loaded"]
     python, nat, spread_ref = pair["python"], pair["native"], pair["spread"]
@@ -188,6 +197,8 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
         if branch(a) == branch(b):  # (a level solution one impl's check rejected: a re-plan)
             assert set(b.timings) <= set(a.timings)
         for key, value in slacks(b.diagnostics).items():
+            if degenerate:
+                break
             other = a.diagnostics[key]
             assert np.isnan(other) == np.isnan(value), key
             if not np.isnan(value):
@@ -215,7 +226,7 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
                 spread[branch(b)] = max(spread.get(branch(b), 0.0), diff)
             pairs = zip((a.tau, a.qdd, a.wrench), (b.tau, b.qdd, b.wrench), strict=True)
             compared.append((branch(b), max(relative(x, y) for x, y in pairs)))
-    if backend == "quadprog":  # the reference backend: the impls agree on nearly every state
+    if backend == "quadprog" and exact:  # the reference backend: agreement on nearly every state
         assert len(compared) + both_failed >= STATES - 1, (len(compared), both_failed)
     tol = max(3e-6, 10 * spread_slacks) if exact else 1e-3
     for key, diff in slack_diffs:
