@@ -107,8 +107,8 @@ def plan(path: str):
             ["osqp_libdwbc does not run at tier high"],
         ),
         (
-            "version: 1\ntracking:\n  - scenarios: [ahn_dof_scaling]\n    check_tol: -1\n",
-            "tracking[0].check_tol",
+            "version: 1\ntracking:\n  - scenarios: [ahn_dof_scaling]\n    check_factor: -1\n",
+            "tracking[0].check_factor",
             ["greater than 0"],
         ),
         (
@@ -249,7 +249,7 @@ def test_a_solver_that_raises_or_lies_becomes_a_failure_row(
     assert "RuntimeError: injected backend crash" in crash["message"]
     lie = runs.loc[("timing", "quadprog")]
     assert lie["status"] == "failed"
-    assert "reported solved but primal residual" in lie["message"]
+    assert "reported solved but relative primal residual" in lie["message"]
     assert "(quadprog, " in lie["message"]
     # the sweep went on: the healthy solver's rows are there and fine
     assert runs.loc[("tracking", "proxqp"), "status"] == "ok"
@@ -344,7 +344,7 @@ def test_a_closed_loop_run_rejects_a_qp_reported_solved_that_is_not(
     runs = pd.read_csv(tmp_path / "out" / "runs.csv").set_index("solver")
     lie = runs.loc["daqp"]
     assert lie["status"] == "failed"
-    assert lie["message"].startswith("reported solved but primal residual"), lie["message"]
+    assert lie["message"].startswith("reported solved but relative primal residual"), lie["message"]
     assert "(daqp, " in lie["message"] and "at t = 0.000 s" in lie["message"]
     assert "(20 of 60 ticks rejected)" in lie["message"]
     assert lie["failures"] == 20 and lie["ticks"] == 60

@@ -31,12 +31,12 @@ def run_tracking(
     rid: str,
     version: str,
     log_every: int = 1,
-    check_tol: float | None = None,
+    check_factor: float | None = None,
 ) -> RunRecord:
     """One closed-loop run from plain arguments (what a dask worker receives).
 
     The record carries no ``RunResult`` (it holds the robot's native models, which do not
-    pickle); its per-tick log keeps every ``log_every``-th tick. ``check_tol``: see
+    pickle); its per-tick log keeps every ``log_every``-th tick. ``check_factor``: see
     :func:`wbcbench.bench.runner.compute_tracking`.
     """
     from threadpoolctl import threadpool_limits
@@ -46,7 +46,7 @@ def run_tracking(
 
     with threadpool_limits(1):
         loaded = load_scenario(scenario_path, list(overrides))
-        record = compute_tracking(loaded, settings, rid, version, check_tol=check_tol)
+        record = compute_tracking(loaded, settings, rid, version, check_factor=check_factor)
     record.result = None
     if record.log and log_every > 1:
         record.log = {k: v[::log_every] for k, v in record.log.items()}
@@ -60,7 +60,7 @@ def run_tracking_guarded(
     rid: str,
     version: str,
     log_every: int,
-    check_tol: float | None,
+    check_factor: float | None,
     wall_limit_s: float | None,
 ) -> RunRecord:
     """:func:`run_tracking` in a child process under the wall-clock guard
@@ -73,7 +73,7 @@ def run_tracking_guarded(
     from wbcbench.bench.runner import RunRecord, base_row
     from wbcbench.scenarios.load import load_scenario
 
-    args = (scenario_path, overrides, settings, rid, version, log_every, check_tol)
+    args = (scenario_path, overrides, settings, rid, version, log_every, check_factor)
     if not can_guard():
         return run_tracking(*args)
     loaded = load_scenario(scenario_path, list(overrides))
@@ -95,7 +95,7 @@ def _arguments(job: Job, rid: str, version: str) -> tuple[Any, ...]:
         rid,
         version,
         int(job.options.get("log_every", 1)),
-        job.options.get("check_tol"),
+        job.options.get("check_factor"),
         job.options.get("wall_limit_s"),
     )
 

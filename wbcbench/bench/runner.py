@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from wbcbench.bench.checks import ReportedCheck
+from wbcbench.bench.checks import CHECK_FACTOR, ReportedCheck
 from wbcbench.bench.results import ResultsStore
 from wbcbench.errors import WbcBenchError
 from wbcbench.metrics.run_metrics import run_metrics
@@ -121,14 +121,15 @@ def compute_tracking(
     rid: str,
     version: str,
     progress: Callable[[int, int], None] | None = None,
-    check_tol: float | None = None,
+    check_factor: float | None = None,
 ) -> RunRecord:
     """Run one closed-loop combination and return its row, metrics and log (nothing stored).
 
-    With ``check_tol``, every QP the solver reports solved is checked after its step (outside
-    the timed stages, :mod:`wbcbench.bench.checks`): one whose primal residual exceeds
-    ``check_tol`` × its data's magnitude fails the tick, and the run ends ``failed`` with the
-    message ``reported solved but …`` (or keeps a fall's status with that message appended).
+    With ``check_factor``, every QP the solver reports solved is checked after its step (outside
+    the timed stages, :mod:`wbcbench.bench.checks`): one whose relative KKT residuals exceed
+    ``check_factor`` × the accuracy its tier asks of the backend fails the tick, and the run
+    ends ``failed`` with the message ``reported solved but …`` (or keeps a fall's status with
+    that message appended).
 
     Never raises: an exception becomes a row with status ``error`` and its message.
     """
@@ -140,7 +141,7 @@ def compute_tracking(
     log = None
     try:
         robot = load_scenario_robot(loaded)
-        checker = ReportedCheck(check_tol) if check_tol else None
+        checker = ReportedCheck(check_factor) if check_factor else None
         result = run_closed_loop(
             loaded,
             settings,
@@ -183,12 +184,39 @@ def execute(
     store: ResultsStore,
     progress: Callable[[int, int], None] | None = None,
     skip_done: bool = True,
+    check_factor: float | None = CHECK_FACTOR,
+    wall_limit_s: float | None = None,
 ) -> RunRecord | None:
-    """Run one combination and append it to the store (None when it was already there)."""
+    """Run one combination and append it to the store (None when it was already there).
+
+    As a sweep's runs: every QP reported solved is checked (``check_factor``, see
+    :func:`compute_tracking`), and the run executes in a forked child under the wall-clock
+    guard (``wall_limit_s``, default :func:`~wbcbench.bench.guard.tracking_deadline`): a run
+    that hangs or whose process dies is a ``failed`` row. The record then carries no
+    ``RunResult`` (it does not cross processes)."""
+    from wbcbench.bench.guard import call_with_deadline, can_guard, tracking_deadline
+
     version = code_version(store)
     rid = run_id(loaded, settings, version)
     if skip_done and rid in store.done_run_ids():
         return None
-    record = compute_tracking(loaded, settings, rid, version, progress)
+    args = (loaded, settings, rid, version, progress, check_factor)
+    if can_guard():
+        seconds = wall_limit_s or tracking_deadline(loaded.spec.duration)
+        outcome = call_with_deadline(_tracking_without_result, args, seconds)
+        if outcome.ok:
+            record: RunRecord = outcome.value
+        else:
+            row = base_row(loaded, settings, rid, version)
+            row.update(status="failed", fell=False, message=outcome.message, ticks=0, failures=0)
+            record = RunRecord(row, [], None)
+    else:
+        record = compute_tracking(*args)
     store_record(store, loaded, record)
+    return record
+
+
+def _tracking_without_result(*args: Any) -> RunRecord:
+    record = compute_tracking(*args)
+    record.result = None
     return record

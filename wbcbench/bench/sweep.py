@@ -41,6 +41,7 @@ from typing import Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from wbcbench.bench.checks import CHECK_FACTOR
 from wbcbench.errors import ScenarioError, UnknownNameError, WbcBenchError
 from wbcbench.sim.closed_loop import RunSettings
 
@@ -121,11 +122,12 @@ class TrackingSpec(MatrixSpec):
         description="shorten longer scenarios to this [s] (their metrics window moves inside "
         "the run); for quick sweeps, never for reproducing a paper's window",
     )
-    check_tol: float | None = Field(
-        1e-2,
+    check_factor: float | None = Field(
+        CHECK_FACTOR,
         gt=0,
-        description="after each step, QPs reported solved must have a primal residual below "
-        "check_tol × the data's magnitude, else the tick fails (None: no check)",
+        description="after each step, QPs reported solved must meet their KKT conditions "
+        "(relative to the problem's scale) to check_factor × the accuracy the tier asks of the "
+        "backend, else the tick fails (None: no check)",
     )
 
 
@@ -153,11 +155,12 @@ class TimingSpec(MatrixSpec):
     )
     probe_ticks: int = Field(20, ge=1, description="ticks after which max_step_ms is checked")
     keep_log: bool = Field(True, description="save the per-tick stage times of each run")
-    check_tol: float | None = Field(
-        1e-2,
+    check_factor: float | None = Field(
+        CHECK_FACTOR,
         gt=0,
-        description="after each timed step, QPs reported solved must have a primal residual "
-        "below check_tol × the data's magnitude (None: no check)",
+        description="after each timed step, QPs reported solved must meet their KKT conditions "
+        "(relative to the problem's scale) to check_factor × the accuracy the tier asks of the "
+        "backend (None: no check)",
     )
 
 
@@ -542,7 +545,7 @@ def _timing_options(matrix: TimingSpec, loaded: Any, file: str, key: str) -> dic
         **_recorder_options(_recorders(matrix, loaded, file, key)),
         max_step_ms=matrix.max_step_ms,
         probe_ticks=matrix.probe_ticks,
-        check_tol=matrix.check_tol,
+        check_factor=matrix.check_factor,
         **({} if matrix.keep_log else {"keep_log": False}),
     )
 
@@ -594,7 +597,7 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                     if overrides:  # in the row's settings, so a report can rebuild the scenario
                         options = {**options, "overrides": list(overrides)}
                 elif isinstance(matrix, TrackingSpec):
-                    options = dict(check_tol=matrix.check_tol)
+                    options = dict(check_factor=matrix.check_factor)
                     if matrix.log_every != 1:
                         options["log_every"] = matrix.log_every
                 if matrix.wall_limit_s is not None:

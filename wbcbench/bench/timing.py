@@ -11,8 +11,9 @@ controller reports) and every hierarchy level (``solve.<level>``): median, IQR, 
 min and the deadline-miss rate at 1 kHz.
 
 After each timed step (outside the timed region) every QP the solver reported ``solved`` is
-checked independently (:mod:`wbcbench.bench.checks`): a primal residual above ``check_tol`` × the
-data's magnitude marks the tick failed with the message ``reported solved but …``.
+checked independently (:mod:`wbcbench.bench.checks`): KKT residuals above ``check_factor`` ×
+the accuracy the tier asks of the backend mark the tick failed with the message ``reported
+solved but …``.
 """
 
 from __future__ import annotations
@@ -148,7 +149,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
     pairs: list[tuple[Problem, Solution]] = []
     totals: list[float] = []
     probe, limit = int(opts["probe_ticks"]), float(opts["max_step_ms"]) * 1e-3
-    check_tol = opts.get("check_tol")
+    check_factor = opts.get("check_factor")
 
     def after_step(i: int, out: Any) -> str:
         totals.append(out.timings.get("total", np.nan))
@@ -157,7 +158,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
                 f"median step {1e3 * float(np.nanmedian(totals)):.1f} ms over the first "
                 f"{probe} ticks exceeds max_step_ms = {1e3 * limit:g} ms"
             )
-        message = check_reported(pairs, check_tol) if check_tol else ""
+        message = check_reported(pairs, check_factor) if check_factor else ""
         pairs.clear()
         return message
 

@@ -16,6 +16,7 @@ Python lines.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -206,6 +207,9 @@ class QpCall:
         self.problem = qp_view(buffers, name)
         self.handle = handle
         self.cpp = handle.native_solver() if solver_calls == "native" else None
+        # a handle whose answers are checked after the step (bench.checks.SolverCapture)
+        self.sink: list[tuple[Problem, Solution]] | None = getattr(handle, "sink", None)
+        self._last: Solution | None = None
 
     def solve(self, timer: SolveTimes, level: str | None = None) -> tuple[Any, Solution]:
         """Solve the QP the tick has built; ``(x, solution)``, x None when it failed."""
@@ -215,7 +219,18 @@ class QpCall:
             return (sol.x if sol.success and sol.x is not None else None), sol
         sol = solution_of(self.handle, self.cpp.solve(self.buffers))
         timer.add_solution(sol, level)
+        if self.sink is not None and isinstance(timer, NativeTimer):
+            self._last = sol
+            timer.pending.append(self)
         return (self.cpp.x if sol.success else None), sol
+
+    def flush(self, timer: SolveTimes) -> float:
+        """After the timed region: the C++ solve's QP and answer (copies) to the check's sink.
+        The buffers and the C++ solver still hold both: nothing re-solves them in a tick."""
+        if self._last is not None and self.sink is not None:
+            self.sink.append((frozen(self.problem), answered(self._last, self.cpp)))
+        self._last = None
+        return 0.0
 
 
 def single_qp_region(
@@ -263,9 +278,18 @@ class LevelSolve:
         self.failed: Any = None
         self._kept: list[Problem] = []
         self.natives: Any = None
+        # the pools' handles whose answers are checked after the step (SolverCapture)
+        self.sinks = {
+            (p, i): handle.sink
+            for p, handles in enumerate(pools)
+            for i, handle in enumerate(handles)
+            if getattr(handle, "sink", None) is not None
+        }
         if solver_calls == "native":
             self.natives = core().NativeSolvers()
-            self.natives.set_keep(keep)
+            # the check needs each C++ solve's QP and answer: copies, their time taken out of
+            # the tick's (keep_seconds)
+            self.natives.set_keep(keep or bool(self.sinks))
             for p, handles in enumerate(pools):
                 for i, handle in enumerate(handles):
                     solver = handle.native_solver()
@@ -290,13 +314,27 @@ class LevelSolve:
         """Copies of the last tick's QPs, in the order solved (with ``keep``)."""
         if self.natives is None or not self.keep:
             return self._kept
-        copies = [frozen(qp_view(qp, level)) for level, qp in self.natives.kept()]
+        copies = [frozen(qp_view(k[3], k[2])) for k in self.natives.kept()]
         return copies or self._kept
 
-    def flush(self, timer: SolveTimes) -> None:
-        """The C++ solves of the last tick into ``timer`` (after the timed region)."""
-        for rec in self.natives.records():
+    def flush(self, timer: SolveTimes) -> float:
+        """The C++ solves of the last tick into ``timer`` (after the timed region), and to the
+        check's sinks; the seconds the tick spent copying them, to take out of its time."""
+        records = self.natives.records()
+        for rec in records:
             timer.add_solution(native_solution(self.pools, rec), rec[2])
+        if self.sinks:
+            for rec, (pool, handle, level, qp, *answer) in zip(
+                records, self.natives.kept(), strict=True
+            ):
+                sink = self.sinks.get((pool, handle))
+                if sink is not None:
+                    sol = native_solution(self.pools, rec)
+                    x, y, z, z_box = answer
+                    sink.append(
+                        (frozen(qp_view(qp, level)), replace(sol, x=x, y=y, z=z, z_box=z_box))
+                    )
+        return float(self.natives.keep_seconds)
 
     def __call__(
         self, pool: int, handle: int, slot: int, reshaped: bool, level: str
@@ -332,6 +370,15 @@ def native_solution(pools: list[list[Any]], record: tuple[Any, ...]) -> Solution
     """A C++ level solve's record ``(pool, handle, level, *outcome)`` as a Solution."""
     pool, handle, _, *outcome = record
     return solution_of(pools[pool][handle], tuple(outcome))
+
+
+def answered(sol: Solution, cpp: Any) -> Solution:
+    """``sol`` with copies of the C++ solver's last answer: x and the duals it gives."""
+
+    def copy(v: Any) -> Any:
+        return None if v is None else np.array(v, dtype=float)
+
+    return replace(sol, x=copy(cpp.x), y=copy(cpp.y), z=copy(cpp.z), z_box=copy(cpp.z_box))
 
 
 def solution_of(handle: Any, outcome: tuple[Any, ...]) -> Solution:
@@ -408,7 +455,7 @@ class NativeTimer(SolveTimes):
         self.t0 = time.perf_counter()
         self.total: float | None = None
         # level solvers whose C++ solves reach the stages at finish()
-        self.pending: list[LevelSolve] = []
+        self.pending: list[LevelSolve | QpCall] = []
 
     def stop(self) -> None:
         """End the timed region (what follows, e.g. diagnostics, is not part of the tick)."""
@@ -418,7 +465,7 @@ class NativeTimer(SolveTimes):
         """The stages of the tick; ``params`` for ticks that have operational-space parameters."""
         total = time.perf_counter() - self.t0 if self.total is None else self.total
         for solve in self.pending:
-            solve.flush(self)
+            total -= solve.flush(self)
         self.pending = []
         dynamics, build = tick.dynamics_time, tick.build_time
         params = getattr(tick, "params_time", None)

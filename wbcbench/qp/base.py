@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from wbcbench.errors import SolverError, UnofferedChoiceError, WbcBenchError
 from wbcbench.qp.problem import Problem
-from wbcbench.qp.settings import MODES, TIERS, check_mode, check_tier, effective_mode
+from wbcbench.qp.settings import MODES, TIER_EPS, TIERS, check_mode, check_tier, effective_mode
 from wbcbench.qp.solution import Solution, SolutionStatus
 
 Array = NDArray[np.float64]
@@ -58,6 +58,9 @@ class QPSolver(ABC):
             (:mod:`wbcbench.qp.backends.osqp_libdwbc`); ``choice_hint`` says why.
         options_allowed: native settings may be overridden (``make_solver(..., **options)``);
             ``False`` for a named setting, whose settings are its definition.
+        default_eps: the accuracy its own default settings stop at (the ``default`` tier's),
+            relative to the problem's scale: what the independent check of a reported solution
+            holds it to (:meth:`accuracy`).
     """
 
     name: ClassVar[str] = ""
@@ -69,6 +72,13 @@ class QPSolver(ABC):
     modes: ClassVar[tuple[str, ...]] = MODES
     choice_hint: ClassVar[str] = ""
     options_allowed: ClassVar[bool] = True
+    default_eps: ClassVar[float] = 1e-6
+
+    @classmethod
+    def accuracy(cls, tier: str) -> float:
+        """The tolerance ``tier`` asks for (:data:`~wbcbench.qp.settings.TIER_EPS`), or the
+        backend's own default accuracy at the ``default`` tier."""
+        return TIER_EPS.get(tier, cls.default_eps)
 
     def __init__(self, tier: str = "default", mode: str = "cold", **options: Any) -> None:
         """Create a handle.

@@ -105,7 +105,10 @@ def _load(name: str) -> type[QPSolver] | None:
         native = _load(inner) if inner in BACKENDS else None
         caps = native.tier_caps if native and inner in CAPS_PASS_THROUGH else None
         return make_wrapper(
-            inner, native.tier_settings if native else lambda tier: {}, caps or (lambda tier: {})
+            inner,
+            native.tier_settings if native else lambda tier: {},
+            caps or (lambda tier: {}),
+            native.default_eps if native else QPSolver.default_eps,
         )
     entry = _entry(name)
     try:

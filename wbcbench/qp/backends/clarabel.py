@@ -78,6 +78,7 @@ class ClarabelSolver(QPSolver):
     """Clarabel; see the module docstring."""
 
     name = "clarabel"
+    default_eps = 1e-8  # its default tol_feas and tol_gap_abs
     summary = "Clarabel: interior point on the conic form, sparse"
     warm_start = False
     hot_start = True

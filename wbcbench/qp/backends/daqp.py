@@ -88,6 +88,7 @@ class DAQPSolver(QPSolver):
     """DAQP; see the module docstring."""
 
     name = "daqp"
+    default_eps = 1e-6  # its default primal_tol
     summary = "DAQP: dual active set, dense"
     warm_start = True
     hot_start = True

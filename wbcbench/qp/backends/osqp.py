@@ -66,6 +66,7 @@ class OSQPSolver(QPSolver):
     """OSQP; see the module docstring."""
 
     name = "osqp"
+    default_eps = 1e-3  # its default eps_abs = eps_rel
     summary = "OSQP (ADMM, sparse LDLᵀ); hot mode sends only the data that changed"
     warm_start = True
     hot_start = True

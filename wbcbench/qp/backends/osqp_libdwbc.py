@@ -84,6 +84,11 @@ class OSQPLibdwbcSolver(OSQPSolver):
     def tier_settings(tier: str) -> dict[str, Any]:
         return dict(LIBDWBC_SETTINGS)
 
+    @classmethod
+    def accuracy(cls, tier: str) -> float:
+        """Its settings' eps_abs = eps_rel, whatever the tier."""
+        return float(LIBDWBC_SETTINGS["eps_abs"])
+
     send_all = True
 
     def _fields_to_send(self, changed: frozenset[str]) -> frozenset[str]:

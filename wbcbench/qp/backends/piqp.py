@@ -69,6 +69,7 @@ class PIQPSolver(QPSolver):
     """PIQP dense; see the module docstring."""
 
     name = "piqp"
+    default_eps = 1e-8  # its default eps_abs
     summary = "PIQP: proximal interior point, dense"
     warm_start = False
     hot_start = True

@@ -38,6 +38,7 @@ class ProxQPSolver(QPSolver):
     """ProxQP dense; see the module docstring."""
 
     name = "proxqp"
+    default_eps = 1e-5  # its default eps_abs, absolute
     summary = "ProxQP (proxsuite): proximal augmented Lagrangian, dense"
     warm_start = True
     hot_start = True

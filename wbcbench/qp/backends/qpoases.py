@@ -79,6 +79,7 @@ class QpOASESSolver(QPSolver):
     """qpOASES via CasADi; see the module docstring."""
 
     name = "qpoases"
+    default_eps = 1e-9  # its default terminationTolerance, about 5e6 machine epsilons
     summary = "qpOASES through CasADi: online active set, dense"
     warm_start = False
     hot_start = True
@@ -87,6 +88,11 @@ class QpOASESSolver(QPSolver):
     @staticmethod
     def tier_caps(tier: str) -> dict[str, Any]:
         return {"CPUtime": TIER_TIME_LIMIT[tier]}
+
+    @classmethod
+    def accuracy(cls, tier: str) -> float:
+        """Its own round-off-level tolerance at every tier (tiers do not apply)."""
+        return cls.default_eps
 
     def native_solver(self) -> Any | None:
         """qpOASES from C++ (cmeel-qpoases' library), called as CasADi calls it, in this

@@ -42,6 +42,7 @@ def make_wrapper(
     inner: str,
     tier_settings: Callable[[str], dict[str, Any]],
     tier_caps: Callable[[str], dict[str, Any]] = lambda tier: {},
+    default_eps: float = QPSolver.default_eps,
 ) -> type[QPSolver]:
     """A :class:`QPSolver` subclass solving through ``qpsolvers.solve_problem(solver=inner)``.
 
@@ -50,10 +51,14 @@ def make_wrapper(
         tier_settings: the native backend's tier translation (empty dicts if none).
         tier_caps: the native backend's time / iteration caps, where they are the library's own
             settings (empty dicts otherwise).
+        default_eps: the native backend's default accuracy (:attr:`QPSolver.default_eps`).
     """
+
+    inner_eps = default_eps  # (a class body cannot read a parameter of the same name)
 
     class QpsolversSolver(QPSolver):
         name = f"qpsolvers:{inner}"
+        default_eps = inner_eps
         summary = f"{inner} through qpsolvers' generic solve_problem"
         warm_start = inner in _ACCEPTS_INITVALS
         hot_start = False

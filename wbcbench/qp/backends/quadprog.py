@@ -56,6 +56,7 @@ class QuadprogSolver(QPSolver):
     """quadprog; see the module docstring."""
 
     name = "quadprog"
+    default_eps = 1e-9  # a dual active-set method: exact to round-off
     summary = "quadprog: Goldfarb-Idnani dual active set, dense"
     warm_start = False
     hot_start = False

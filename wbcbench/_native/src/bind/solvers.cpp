@@ -79,13 +79,24 @@ void bind_solvers(nb::module_& m) {
       .def("covers", &NativeSolvers::covers, nb::arg("pool"), nb::arg("handle"))
       .def("clear", &NativeSolvers::clear)
       .def("set_keep", &NativeSolvers::set_keep, nb::arg("keep"))
-      .def("kept",
-           [](const NativeSolvers& s) {
-             nb::list out;
-             for (const auto& r : s.records())
-               if (r.qp) out.append(nb::make_tuple(r.level, QpBuffers(*r.qp)));
-             return out;
-           })
+      .def(
+          "kept",
+          [](const NativeSolvers& s) {
+            nb::list out;
+            for (const auto& r : s.records()) {
+              if (!r.qp) continue;
+              const QpSolution& x = *r.sol;
+              auto copy = [](const Vector& d) { return nb::cast(d, nb::rv_policy::copy); };
+              auto dual = [&](bool has, const Vector& d) { return has ? copy(d) : nb::none(); };
+              out.append(nb::make_tuple(r.pool, r.handle, r.level, QpBuffers(*r.qp), copy(x.x),
+                                        dual(x.has_y, x.y), dual(x.has_z, x.z),
+                                        dual(x.has_z_box, x.z_box)));
+            }
+            return out;
+          },
+          "(pool, handle, level, qp, x, y, z, z_box) of every solve of the last tick, copies "
+          "(with set_keep; a dual the backend does not give is None)")
+      .def_prop_ro("keep_seconds", &NativeSolvers::keep_seconds)
       .def("reset", &NativeSolvers::reset)
       .def("records",
            [](const NativeSolvers& s) {

@@ -19,7 +19,8 @@ class NativeSolvers {
     int pool = 0, handle = 0;
     std::string level;
     QpOutcome outcome;
-    std::shared_ptr<const QpBuffers> qp;  // a copy of the QP, when keeping them
+    std::shared_ptr<const QpBuffers> qp;     // a copy of the QP, when keeping them
+    std::shared_ptr<const QpSolution> sol;   // and of its solution (x and the duals)
   };
 
   // solver for handle `handle` of pool `pool` (replacing any)
@@ -34,14 +35,18 @@ class NativeSolvers {
   // the record of the last failed solve, or null
   const Record* failure() const { return failed_ < 0 ? nullptr : &records_[failed_]; }
   void reset();  // every solver's QpSolver::reset
-  // keep a copy of every QP solved in its record (solver dumps; not for timing)
+  // keep a copy of every QP solved and of its solution in its record (solver dumps, the
+  // independent check of what a backend reports; not for timing)
   void set_keep(bool keep) { keep_ = keep; }
+  // seconds the last tick spent making those copies (taken out of the tick's timed region)
+  double keep_seconds() const { return keep_seconds_; }
 
  private:
   std::map<std::pair<int, int>, std::shared_ptr<QpSolver>> solvers_;
   std::vector<Record> records_;
   int failed_ = -1;
   bool keep_ = false;
+  double keep_seconds_ = 0.0;
 };
 
 }  // namespace wbcbench
