@@ -82,6 +82,7 @@ def task_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
         out += [
             ("kp_nan", setter(("tasks", i, "kp"), NAN, f"{k}.kp")),
             ("kp_negative", setter(("tasks", i, "kp"), -5.0, f"{k}.kp")),
+            ("kp_huge", setter(("tasks", i, "kp"), 1e300, f"{k}.kp")),
             ("kv_inf", setter(("tasks", i, "kv"), INF, f"{k}.kv")),
             ("kp_text", setter(("tasks", i, "kp"), "stiff", f"{k}.kp")),
             (
@@ -100,6 +101,11 @@ def task_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
             ("task_no_type", deleter(("tasks", i, "type"), f"{k}.type")),
             ("task_level_typo", setter(("tasks", i, "level"), "torque", f"{k}.level")),
         ]
+    m = first_task(raw, ("joint_posture", "joint_damping"))
+    if m is not None:
+        out.append(
+            ("joint_kp_wrong_length", setter(("tasks", m, "kp"), [1.0, 2.0], f"tasks[{m}].kp"))
+        )
     j = first_task(raw, ("frame_position", "frame_pose", "frame_orientation"))
     if j is not None:
         out.append(
@@ -119,6 +125,9 @@ def contact_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
         ("fmin_nan", setter(("contacts", 0, "fmin"), NAN, f"{k}.fmin")),
         ("fmin_inf", setter(("contacts", 0, "fmin"), INF, f"{k}.fmin")),
         ("fmin_negative", setter(("contacts", 0, "fmin"), -1.0, f"{k}.fmin")),
+        ("fmin_huge", setter(("contacts", 0, "fmin"), 1e300, f"{k}.fmin")),
+        ("fmax_huge", setter(("contacts", 0, "fmax"), 1e300, f"{k}.fmax")),
+        ("mu_huge", setter(("contacts", 0, "mu"), 1e3, f"{k}.mu")),
         ("fmax_below_fmin", setter(("contacts", 0, "fmax"), 1.0, f"{k}.fmax")),
         ("facets_huge", setter(("contacts", 0, "facets"), 100000, f"{k}.facets")),
         ("facets_two", setter(("contacts", 0, "facets"), 2, f"{k}.facets")),
@@ -141,6 +150,52 @@ def contact_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
     ]
 
 
+def controller_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
+    """Settings of the controllers: non-finite and out-of-range numbers, names that do not
+    exist in the scenario or on the robot."""
+    q, kin = "controllers.qp_wbc", "controllers.kin_hqp"
+    return [
+        ("qp_wbc_weights_empty", setter(("controllers", "qp_wbc", "weights"), [], f"{q}.weights")),
+        ("qp_wbc_weights_nan", setter(("controllers", "qp_wbc", "weights"), [NAN], f"{q}.weights")),
+        (
+            "qp_wbc_weights_negative",
+            setter(("controllers", "qp_wbc", "weights"), [1.0, -1.0], f"{q}.weights"),
+        ),
+        (
+            "qp_wbc_wrench_weight_inf",
+            setter(("controllers", "qp_wbc", "wrench_weight"), INF, f"{q}.wrench_weight"),
+        ),
+        (
+            "kin_hqp_com_gain_inf",
+            setter(("controllers", "kin_hqp", "com_gain"), INF, f"{kin}.com_gain"),
+        ),
+        (
+            "kin_hqp_speed_limit_unknown_task",
+            setter(
+                ("controllers", "kin_hqp", "speed_limits"),
+                {"no_such_task": 0.25},
+                f"{kin}.speed_limits.no_such_task",
+            ),
+        ),
+        (
+            "kin_hqp_self_collision_unknown_body",
+            setter(
+                ("controllers", "kin_hqp", "self_collision"),
+                [["no_such_body", "no_such_other"]],
+                f"{kin}.self_collision[0][0]",
+            ),
+        ),
+        (
+            "kin_hqp_obstacle_body_unknown",
+            setter(
+                ("controllers", "kin_hqp", "obstacle_bodies"),
+                ["no_such_body"],
+                f"{kin}.obstacle_bodies[0]",
+            ),
+        ),
+    ]
+
+
 def top_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
     dynamic = raw.get("kind", "dynamic") == "dynamic"
     out: list[tuple[str, Mutation]] = [
@@ -156,6 +211,7 @@ def top_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
         ("duration_zero", setter(("duration",), 0.0, "duration")),
         ("duration_huge", setter(("duration",), 1e9, "duration")),
         ("duration_text", setter(("duration",), "ten seconds", "duration")),
+        ("duration_no_tick", setter(("duration",), 1e-4, "duration")),
         ("control_rate_nan", setter(("control_rate",), NAN, "control_rate")),
         ("control_rate_zero", setter(("control_rate",), 0.0, "control_rate")),
         ("control_rate_huge", setter(("control_rate",), 1e9, "control_rate")),
@@ -236,7 +292,7 @@ def main() -> None:
         text = (ROOT / "scenarios" / f"{base}.yaml").read_text(encoding="utf-8")
         original = yaml.safe_load(text)
         families = top_mutations(original) + task_mutations(original)
-        families += contact_mutations(original)
+        families += contact_mutations(original) + controller_mutations(original)
         for label, mutate in families:
             raw = copy.deepcopy(original)
             key = mutate(raw)

@@ -31,11 +31,16 @@ from wbcbench.tasks.tasks import Task, TaskTerm
 class ControllerConfig(BaseModel):
     """Base of every controller's settings: unknown keys are errors."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     impl: Literal["python"] | None = Field(
         None, description="implementation: python (this controller has no native tick yet)"
     )
+
+    def robot_errors(self, spec: Scenario, robot: Robot) -> list[tuple[str, str]]:
+        """``(key, message)`` for each name in the settings the scenario or its robot lacks
+        (a task, a body); the key is relative to the controller's settings."""
+        return []
 
 
 class NativeConfig(ControllerConfig):

@@ -50,10 +50,12 @@ from wbcbench.controllers.base import (
     StageTimer,
 )
 from wbcbench.dynamics.state import RobotState
-from wbcbench.errors import SolverError, WbcBenchError
+from wbcbench.errors import SolverError, UnknownNameError, WbcBenchError
 from wbcbench.qp.hls import HlsResult, Level, solve_hls
 from wbcbench.qp.hls_baselines import solve_fullqr_hierarchy, solve_svd_hierarchy
-from wbcbench.tasks.collision import Box, CollisionModel, CollisionTerms
+from wbcbench.robots.loader import Robot
+from wbcbench.scenarios.schema import Scenario
+from wbcbench.tasks.collision import Box, CollisionModel, CollisionTerms, robot_capsules
 from wbcbench.tasks.tasks import Task, TaskTerm
 
 Array = NDArray[np.float64]
@@ -151,6 +153,25 @@ class KinHqpConfig(ControllerConfig):
     )
     damping: float = Field(1e-3, ge=0, description="Tikhonov factor of the task levels")
     gaze: GazeSpec | None = None
+
+    def robot_errors(self, spec: Scenario, robot: Robot) -> list[tuple[str, str]]:
+        """Speed limits name the scenario's tasks; collision bodies have capsules."""
+        out: list[tuple[str, str]] = []
+        tasks = [t.name for t in spec.tasks]
+        for name in self.speed_limits:
+            if name not in tasks:
+                out.append((f"speed_limits.{name}", str(UnknownNameError("task", name, tasks))))
+        capsules = sorted(robot_capsules(robot))
+        for i, pair in enumerate(self.self_collision or []):
+            for j, body in enumerate(pair):
+                if body not in capsules:
+                    error = UnknownNameError("capsule body", body, capsules)
+                    out.append((f"self_collision[{i}][{j}]", str(error)))
+        for i, body in enumerate(self.obstacle_bodies or []):
+            if body not in capsules:
+                error = UnknownNameError("capsule body", body, capsules)
+                out.append((f"obstacle_bodies[{i}]", str(error)))
+        return out
 
     @model_validator(mode="after")
     def _baselines_take_equalities(self) -> KinHqpConfig:

@@ -17,7 +17,7 @@ f is the reaction on the robot (see :mod:`wbcbench.dynamics.state`).
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field
@@ -43,8 +43,9 @@ class QpWbcConfig(NativeConfig):
     variables: Literal["full", "eliminated"] = Field(
         "full", description="(q̈, Γ, f) or torque-eliminated (q̈, f)"
     )
-    weights: list[float] = Field(
+    weights: list[Annotated[float, Field(gt=0)]] = Field(
         [1e3, 1.0, 1e-3, 1e-6],
+        min_length=1,
         description="task weight per priority (1 first); the last one repeats for lower ones",
     )
     wrench_weight: float = Field(1e-5, ge=0, description="weight of ‖f‖²")

@@ -230,7 +230,7 @@ def load_scenario(
         raise ScenarioError(file, "", "nested too deeply to be a scenario") from None
     for i, task in enumerate(spec.tasks):
         _check_reference_dim(file, i, task)
-        _check_gains(file, i, task)
+        _check_gains(file, i, task, spec.control_rate)
     _check_consistency(file, spec)
     return LoadedScenario(spec, path, tuple(overrides))
 
@@ -287,14 +287,22 @@ def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
     return raw
 
 
-def _check_gains(file: str, i: int, task: TaskSpec) -> None:
-    """Gains are ≥ 0, and a gain vector has one value per axis of a frame or CoM task."""
+def _check_gains(file: str, i: int, task: TaskSpec, rate: float) -> None:
+    """Gains are ≥ 0 and within what a loop at ``rate`` can realise (kp ≤ rate², kv ≤ rate),
+    and a gain vector has one value per axis of a frame or CoM task."""
     dim = len(task.selected_axes)
-    for name in ("kp", "kv"):
+    for name, most in (("kp", rate**2), ("kv", rate)):
         gain = getattr(task, name)
         values = gain if isinstance(gain, list) else [gain]
         if any(v < 0 for v in values):
             raise ScenarioError(file, f"tasks[{i}].{name}", f"gains must be ≥ 0, got {gain}")
+        if any(v > most for v in values):
+            raise ScenarioError(
+                file,
+                f"tasks[{i}].{name}",
+                f"{max(values):g} is beyond what a loop at control_rate {rate:g} Hz can realise "
+                f"(at most {most:g})",
+            )
         if isinstance(gain, list) and dim and len(gain) != dim:
             raise ScenarioError(
                 file,
@@ -326,6 +334,12 @@ def _check_consistency(file: str, spec: Scenario) -> None:
             raise ScenarioError(
                 file, f"contacts[{i}].fmax", f"fmax = {c.fmax:g} N is below fmin = {c.fmin:g} N"
             )
+    if spec.duration * spec.control_rate < 1:
+        raise ScenarioError(
+            file,
+            "duration",
+            f"{spec.duration:g} s holds no control tick at control_rate {spec.control_rate:g} Hz",
+        )
     if spec.metrics.window is not None:
         t0, t1 = spec.metrics.window
         if not 0 <= t0 < t1:
@@ -426,6 +440,15 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
                     str(UnknownNameError("joint", joint, robot.joint_names)),
                 )
         dims = len(t.joints or robot.joint_names)
+        for gain in ("kp", "kv"):
+            values = getattr(t, gain)
+            if t.type in ("joint_posture", "joint_damping") and isinstance(values, list):
+                if len(values) != dims:
+                    raise ScenarioError(
+                        file,
+                        f"tasks[{i}].{gain}",
+                        f"expected one value or {dims} (one per joint), got {len(values)}",
+                    )
         ref = t.reference
         if t.type in ("joint_posture", "joint_damping") and ref is not None:
             field = "values" if ref.type == "piecewise" else REFERENCE_DIM_FIELD[ref.type]
@@ -448,9 +471,11 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
         except UnknownNameError as exc:
             raise ScenarioError(file, f"controllers.{name}", str(exc)) from None
         try:
-            cls.Config.model_validate(settings)
+            config = cls.Config.model_validate(settings)
         except ValidationError as exc:
             raise validation_error(file, exc, cls.Config, f"controllers.{name}") from None
+        for key, message in config.robot_errors(spec, robot):
+            raise ScenarioError(file, f"controllers.{name}.{key}", message)
 
 
 def controller_settings(loaded: LoadedScenario, name: str) -> dict[str, Any]:

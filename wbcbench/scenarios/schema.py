@@ -183,9 +183,9 @@ class ContactSpec(Strict):
     """A plane contact held by a robot frame (reaction-on-robot convention: fmin > 0)."""
 
     frame: str
-    mu: float = Field(0.5, gt=0)
-    fmin: float = Field(30.0, ge=0, description="minimum normal force [N]")
-    fmax: float | None = Field(None, gt=0)
+    mu: float = Field(0.5, gt=0, le=10)
+    fmin: float = Field(30.0, ge=0, le=1e5, description="minimum normal force [N]")
+    fmax: float | None = Field(None, gt=0, le=1e5, description="[N], at most 1e5")
     facets: int = Field(4, ge=3, le=64, description="edges of the friction pyramid")
     mu_yaw: float | None = Field(None, gt=0)
     cop: CopBox | None = None
