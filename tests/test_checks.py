@@ -208,3 +208,26 @@ def test_a_wrong_cpp_answer_is_caught(monkeypatch: pytest.MonkeyPatch) -> None:
     assert check_reported(pairs, CHECK_FACTOR).startswith(
         "reported solved but relative primal residual"
     )
+
+
+def test_wrong_duals_get_a_second_opinion_on_the_objective() -> None:
+    """Duals that miss their limit fail the QP only when x is not optimal: an optimal x with
+    wrong duals passes (a reference backend's optimum has its objective), a feasible but
+    suboptimal x with them fails."""
+    problem = Problem(
+        H=np.diag([2.0, 2.0]),
+        g=np.array([-2.0, -6.0]),
+        A=np.zeros((0, 2)),
+        b=np.zeros(0),
+        C=np.array([[1.0, 1.0]]),
+        l=np.array([-np.inf]),
+        u=np.array([2.0]),
+    )
+    sol = make_solver("daqp").solve(problem)  # x = (0, 2), z = 2
+    assert check_reported([(problem, sol)], CHECK_FACTOR) == ""
+    wrong_duals = replace(sol, z=np.array([0.5]))
+    assert check_reported([(problem, wrong_duals)], CHECK_FACTOR) == ""
+    feasible_not_optimal = replace(sol, x=np.array([0.5, 1.5]))
+    message = check_reported([(problem, feasible_not_optimal)], CHECK_FACTOR)
+    assert message.startswith("reported solved but relative dual residual"), message
+    assert "above quadprog's (daqp, QP)" in message

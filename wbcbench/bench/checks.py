@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from wbcbench.errors import WbcBenchError
-from wbcbench.qp import Problem, Solution
+from wbcbench.qp import Problem, Solution, make_solver
 from wbcbench.qp.base import QPSolver
 from wbcbench.qp.registry import solver_class
 from wbcbench.qp.validity import relative_kkt
@@ -75,21 +75,64 @@ def check_reported(pairs: list[tuple[Problem, Solution]], factor: float) -> str:
     (:meth:`~wbcbench.qp.QPSolver.accuracy`): the primal residual ``factor × eps``; the dual
     residual ``factor × max(eps, OPTIMALITY_FLOOR)``; the duality gap the same, at the tiers that
     set a gap tolerance (not ``default``: ProxQP and OSQP do not stop on the gap by default).
+
+    Duals are a certificate, not the answer: a feasible x whose duals miss their limit gets a
+    second opinion (:func:`objective_excess`): it passes when its objective is within the same
+    limit of a reference backend's optimum (measured: HiGHS returns optimal x with duals
+    stationary to only 4e-4 of the scale; DAQP once returned x 14 % above the optimum as solved,
+    with duals 1e-2 off).
     """
     for problem, sol in pairs:
         if not sol.success:
             continue
         eps = _accuracy(sol)
         prim, dual, gap = relative_kkt(problem, sol)
+        where = f"({sol.solver}, {problem.name or 'QP'})"
+        if not prim <= factor * eps:
+            return (
+                f"reported solved but relative primal residual {prim:.1e} > "
+                f"{factor * eps:.0e} {where}"
+            )
         optimality = factor * max(eps, OPTIMALITY_FLOOR)
-        checks = [("primal residual", prim, factor * eps), ("dual residual", dual, optimality)]
+        checks = [("dual residual", dual)]
         if sol.tier != "default":
-            checks.append(("duality gap", gap, optimality))
-        for what, value, limit in checks:
-            if value is not None and not value <= limit:
-                where = f"({sol.solver}, {problem.name or 'QP'})"
-                return f"reported solved but relative {what} {value:.1e} > {limit:.0e} {where}"
+            checks.append(("duality gap", gap))
+        for what, value in checks:
+            if value is not None and not value <= optimality:
+                excess, reference = objective_excess(problem, sol)
+                if excess <= optimality:
+                    break
+                return (
+                    f"reported solved but relative {what} {value:.1e} > {optimality:.0e}, "
+                    f"objective {excess:.1e} above {reference}'s {where}"
+                )
     return ""
+
+
+#: backends that give the second opinion, in order (the first that solves the QP)
+REFERENCES = ("quadprog", "clarabel")
+
+
+def objective_excess(problem: Problem, sol: Solution) -> tuple[float, str]:
+    """How far ``sol``'s objective lies above a reference backend's optimum of ``problem``,
+    relative to 1 + the largest of the objective's terms, and the reference's name; ``inf``
+    when no reference solves it."""
+    assert sol.x is not None
+
+    def objective(x: np.ndarray) -> tuple[float, float]:
+        quad, lin = 0.5 * float(x @ problem.H @ x), float(problem.g @ x)
+        return quad + lin, max(abs(quad), abs(lin))
+
+    for name in REFERENCES:
+        try:
+            ref = make_solver(name, tier="high").solve(problem)
+        except (WbcBenchError, ValueError):
+            continue
+        if ref.success and ref.x is not None:
+            f, scale = objective(sol.x)
+            f_ref, scale_ref = objective(ref.x)
+            return (f - f_ref) / (1.0 + max(scale, scale_ref)), name
+    return float("inf"), "every reference backend"
 
 
 def _accuracy(sol: Solution) -> float:

@@ -79,9 +79,7 @@ class HiGHSSolver(QPSolver):
     """HiGHS; see the module docstring."""
 
     name = "highs"
-    # its default feasibility tolerances are 1e-7, but they apply to its internally scaled
-    # problem: on whole-body QPs its duals are stationary to ~4e-5 of the problem's scale
-    default_eps = 1e-5
+    default_eps = 1e-7  # its default primal and dual feasibility tolerances
     summary = "HiGHS: active-set QP, sparse"
     warm_start = False
     hot_start = True
