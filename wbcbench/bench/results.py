@@ -6,7 +6,8 @@ appended as each run finishes (so a crash loses nothing) and mirrored to Parquet
 versions and code the results were measured with.
 
 Crash safety. A run is written log first, then its metrics, then its row, each line appended
-whole and flushed: the row is the commit mark. Opening a store repairs what a kill can leave:
+whole and flushed (one row is one line: line breaks in a message become spaces): the row is the
+commit mark. ``provenance.json`` and the mirrors are written to a temporary file and renamed. Opening a store repairs what a kill can leave:
 a torn last line (cut off), metrics whose run has no row (removed, so the rerun that computes
 the run again does not duplicate them). Appending costs O(1); the Parquet mirrors are rewritten
 atomically when a sweep ends and whenever a store is opened whose mirror is older than its
@@ -76,12 +77,13 @@ class ResultsStore:
                 previous = {}
         info["scenarios"] = previous.get("scenarios", {})
         self.provenance = info
-        path.write_text(json.dumps(info, indent=2, sort_keys=True) + "\n")
+        _write_atomically(path, json.dumps(info, indent=2, sort_keys=True) + "\n")
 
     def record_scenario(self, name: str, scenario_hash: str, path: str) -> None:
         self.provenance["scenarios"][name] = {"hash": scenario_hash, "file": path}
-        (self.folder / "provenance.json").write_text(
-            json.dumps(self.provenance, indent=2, sort_keys=True) + "\n"
+        _write_atomically(
+            self.folder / "provenance.json",
+            json.dumps(self.provenance, indent=2, sort_keys=True) + "\n",
         )
 
     @staticmethod
@@ -98,7 +100,7 @@ class ResultsStore:
             writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
             if new:
                 writer.writeheader()
-            writer.writerows(rows)
+            writer.writerows(_one_line(row) for row in rows)
             fh.flush()
 
     def add_run(
@@ -200,3 +202,18 @@ class ResultsStore:
             (self.folder / "logs" / f"{rid}.parquet").unlink(missing_ok=True)
         self.refresh_mirror()
         return int(gone.sum())
+
+
+def _one_line(row: dict[str, Any]) -> dict[str, Any]:
+    """The row with line breaks in its text replaced by spaces: one row is one line of the file,
+    so a write cut short by a kill is exactly a last line without its newline."""
+    return {
+        k: " ".join(v.splitlines()) if isinstance(v, str) and ("\n" in v or "\r" in v) else v
+        for k, v in row.items()
+    }
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
