@@ -7,11 +7,12 @@ versions and code the results were measured with.
 
 Crash safety. A run is written log first, then its metrics, then its row, each line appended
 whole and flushed (one row is one line: line breaks in a message become spaces): the row is the
-commit mark. ``provenance.json`` and the mirrors are written to a temporary file and renamed. Opening a store repairs what a kill can leave:
-a torn last line (cut off), metrics whose run has no row (removed, so the rerun that computes
-the run again does not duplicate them). Appending costs O(1); the Parquet mirrors are rewritten
-atomically when a sweep ends and whenever a store is opened whose mirror is older than its
-tables, so a mirror is never behind once a sweep has finished or a store has been opened.
+commit mark. ``provenance.json`` and the mirrors are written to a temporary file and renamed.
+Opening a store repairs what a kill can leave: a torn last line (cut off), metrics whose run has
+no row (removed, so the rerun that computes the run again does not duplicate them). Appending
+costs O(1); the Parquet mirrors are rewritten atomically when a sweep ends and whenever a store
+is opened whose mirror is older than its tables, so a mirror is never behind once a sweep has
+finished or a store has been opened.
 """
 
 from __future__ import annotations
