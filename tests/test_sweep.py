@@ -478,3 +478,21 @@ def test_impls_run_each_impl_of_a_native_controller_once_and_a_python_one_once(
     with pytest.raises(ScenarioError) as err:
         plan(bad)
     assert "timing[0].impls[0]" in str(err.value) and "'native'" in str(err.value)
+
+
+def test_a_hung_solver_comparison_does_not_hang_the_sweep(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import time
+
+    import wbcbench.report.solvers as solvers
+
+    monkeypatch.setattr(solvers, "run_solver_comparison", lambda *a, **k: time.sleep(600))
+    text = (
+        "version: 1\nsolver_comparison:\n  scenarios: [tocabi_stand_sway]\n"
+        "  controllers: [qp_wbc]\n  solvers: [daqp]\n  wall_limit_s: 1\n"
+    )
+    t0 = time.perf_counter()
+    run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
+    assert time.perf_counter() - t0 < 60
+    assert "solver comparison: exceeded the wall-clock guard of 1 s" in capsys.readouterr().out

@@ -179,6 +179,12 @@ class SolverComparisonSpec(Strict):
         250.0, gt=0, description="a solver × tier × mode slower than this once is skipped"
     )
     skip: list[SkipRule] = Field(default_factory=list)
+    wall_limit_s: float = Field(
+        3600.0,
+        gt=0,
+        description="wall-clock guard of the whole comparison [s]: a solve that hangs stops it "
+        "there (the rows written so far stay) and the sweep goes on",
+    )
 
 
 class HlsScalingSpec(Strict):
@@ -834,9 +840,36 @@ def run_sweep(
     if plan.comparison is not None:
         from wbcbench.report.solvers import run_solver_comparison
 
-        with threadpool_limits(1):
-            run_solver_comparison(plan, store.folder, show_progress=show_progress)
+        comparison = (plan, store.folder, show_progress)
+        _guarded(
+            "solver comparison", run_solver_comparison, comparison, plan.comparison.wall_limit_s
+        )
     if plan.spec.hls_scaling is not None:
-        with threadpool_limits(1):
-            run_hls_scaling(plan.spec.hls_scaling, store, version)
+        scaling = (plan.spec.hls_scaling, store, version)
+        _guarded("hls scaling", run_hls_scaling, scaling, HLS_WALL_LIMIT_S)
+        store.refresh_mirror()  # (its rows were appended by the child)
     return report
+
+
+#: wall-clock guard of the hierarchy scaling study [s] (dense linear algebra only: minutes)
+HLS_WALL_LIMIT_S = 1800.0
+
+
+def _guarded(what: str, fn: Callable[..., Any], args: tuple[Any, ...], seconds: float) -> None:
+    """``fn(*args)`` with one BLAS thread, in a forked child under the wall-clock guard where the
+    process may start one: a hang or a crash is reported and the sweep ends normally (what the
+    child wrote to the folder stays)."""
+    from threadpoolctl import threadpool_limits
+
+    from wbcbench.bench.guard import call_with_deadline, can_guard
+
+    def limited(*a: Any) -> Any:
+        with threadpool_limits(1):
+            return fn(*a)
+
+    if not can_guard():
+        limited(*args)
+        return
+    outcome = call_with_deadline(limited, args, seconds)
+    if not outcome.ok:
+        print(f"{what}: {outcome.message}")
