@@ -496,3 +496,16 @@ def test_a_hung_solver_comparison_does_not_hang_the_sweep(
     run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
     assert time.perf_counter() - t0 < 60
     assert "solver comparison: exceeded the wall-clock guard of 1 s" in capsys.readouterr().out
+
+
+def test_a_timing_row_records_what_the_machine_was_doing(tmp_path: Path) -> None:
+    text = TINY.format(tracking_solvers="daqp", timing_solvers="daqp")
+    text = "version: 1\n" + text[text.index("timing:") :]
+    run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
+    row = pd.read_csv(tmp_path / "out" / "runs.csv").iloc[0]
+    conditions = json.loads(row["settings"])["conditions"]
+    assert {"load_1min", "load_per_core", "busy", "cpu", "cpu_mhz", "blas_threads"} <= set(
+        conditions
+    )
+    assert conditions["blas_threads"] == 1  # the sweep times with one BLAS thread
+    assert conditions["load_1min"] >= 0 and "load_1min_after" in conditions

@@ -53,6 +53,42 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+#: load average per core above which a timing is flagged: the machine was busy with other work
+BUSY_LOAD_PER_CORE = 0.5
+
+
+def cpu_mhz() -> float | None:
+    """The cores' current clock [MHz] (mean over /proc/cpuinfo), None where it is not known."""
+    try:
+        mhz = [
+            float(line.split(":", 1)[1])
+            for line in Path("/proc/cpuinfo").read_text().splitlines()
+            if line.startswith("cpu MHz")
+        ]
+    except (OSError, ValueError):
+        return None
+    return round(sum(mhz) / len(mhz), 1) if mhz else None
+
+
+def machine_conditions() -> dict[str, Any]:
+    """What the machine was doing when a timing was taken: load average (1 min) in all and per
+    core, the CPU model and clock, the BLAS threads and whether the load makes it ``busy``
+    (above :data:`BUSY_LOAD_PER_CORE`)."""
+    from threadpoolctl import threadpool_info
+
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    cores = os.cpu_count() or 1
+    blas = [i.get("num_threads", 0) for i in threadpool_info() if i.get("user_api") == "blas"]
+    return {
+        "load_1min": round(load, 2),
+        "load_per_core": round(load / cores, 2),
+        "busy": bool(load / cores > BUSY_LOAD_PER_CORE),
+        "cpu": cpu_model(),
+        "cpu_mhz": cpu_mhz(),
+        "blas_threads": max(blas, default=0),
+    }
+
+
 def git_commit() -> str:
     """The commit of the working tree, with ``+dirty`` when it has uncommitted changes."""
     try:

@@ -19,6 +19,7 @@ solved but …``.
 from __future__ import annotations
 
 import json
+import sys
 import time
 import traceback
 from pathlib import Path
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from wbcbench.bench.checks import SolverCapture, check_reported
+from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE, machine_conditions
 from wbcbench.bench.runner import RunRecord, base_row
 from wbcbench.bench.sweep import HlsScalingSpec, Job, default_solver
 from wbcbench.errors import WbcBenchError
@@ -175,6 +177,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
                 f"t = {opts['start']:g} s (it ended early: the recorder fell or failed); "
                 "set `record_with` or `start` in the timing matrix"
             )
+        before = machine_conditions()
         timings = replay(
             loaded,
             rec,
@@ -182,6 +185,18 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
             on_step=after_step,
             wrap_solver=lambda handle: SolverCapture(handle, pairs),
         )
+        # the row says what the machine was doing (the load before and after the replay)
+        conditions = {**before, "load_1min_after": machine_conditions()["load_1min"]}
+        row["settings"] = json.dumps(
+            {**json.loads(row["settings"]), "conditions": conditions}, sort_keys=True
+        )
+        if before["busy"]:
+            print(
+                f"warning: {job.label}: timed at load {before['load_1min']:g} "
+                f"({before['load_per_core']:g} per core, above {BUSY_LOAD_PER_CORE:g}): the "
+                "machine was busy; compare its times only within this run",
+                file=sys.stderr,
+            )
         warmup = min(int(opts["warmup"]), max(0, len(rec) - 1))
         for m in timing_metrics(timings.stages, warmup):
             metrics.append(dict(run_id=rid, **base, **m))

@@ -272,7 +272,30 @@ def _ms(us: float) -> float:
 
 
 def _machines(res: Results, paper: str) -> str:
-    return f"Paper times: {P.PAPERS[paper].machine}. Our times: {res.machine}."
+    return f"Paper times: {P.PAPERS[paper].machine}. Our times: {res.machine}.{_load_note(res)}"
+
+
+def _load_note(res: Results) -> str:
+    """How many timing rows were taken on a busy machine (their ``settings.conditions``)."""
+    runs = res.runs
+    if runs.empty or "kind" not in runs or "settings" not in runs:
+        return ""
+    timing = runs[(runs["kind"] == "timing") & (runs["status"] == "ok")]
+    busy, loads = 0, []
+    for text in timing["settings"].dropna():
+        try:
+            conditions = json.loads(text).get("conditions")
+        except (TypeError, ValueError):
+            continue
+        if conditions:
+            busy += bool(conditions.get("busy"))
+            loads.append(float(conditions.get("load_1min", float("nan"))))
+    if not loads:
+        return ""
+    note = f" Load average while timing: {min(loads):g}–{max(loads):g}"
+    if busy:
+        note += f"; {busy} of {len(loads)} timing rows on a busy machine (> 0.5 per core)"
+    return note + "."
 
 
 # -- task matching for tracking tables
