@@ -132,3 +132,16 @@ def test_run_a_scenario_with_a_named_setting(tmp_path: Path, capsys) -> None:
     assert main([*args, "--mode", "hot"]) == 0
     runs = pd.read_csv(Path(out) / "runs.csv")
     assert runs[["solver", "mode", "status"]].values.tolist() == [["osqp_libdwbc", "hot", "ok"]]
+
+
+def test_a_run_row_records_its_overrides_duration_and_when(tmp_path: Path, capsys) -> None:
+    import json
+
+    out = str(tmp_path / "run")
+    args = ["run", "tocabi_stand_sway", "--solver", "daqp", *TINY_SET, "--out", out]
+    assert main([*args, "--no-progress"]) == 0
+    assert "sim_duration_s" in capsys.readouterr().out  # the summary says how long each ran
+    settings = json.loads(pd.read_csv(Path(out) / "runs.csv")["settings"].iloc[0])
+    assert settings["overrides"] == [s for s in TINY_SET if s != "--set"]
+    assert settings["duration_s"] == pytest.approx(float(TINY_SET[1].split("=")[1]))
+    assert {"date", "host", "cpu"} <= set(settings)

@@ -143,14 +143,18 @@ def summary_table(runs: pd.DataFrame, metrics: pd.DataFrame) -> pd.DataFrame:
     """One line per run: status, each task's mean error, median step and solve times."""
     if runs.empty:
         return runs
-    table = runs[["run_id", "scenario", "controller", "solver", "status", "fell"]].copy()
+    columns = ["run_id", "scenario", "controller", "solver", "status", "fell", "sim_duration_s"]
+    table = runs[[c for c in columns if c in runs.columns]].copy()
     if not metrics.empty:
         err = metrics[metrics["metric"].isin(["err_mean"])]
         err = err.assign(col=err["task"] + " [" + err["unit"] + "]")
-        wide = err.pivot_table(index="run_id", columns="col", values="value", aggfunc="first")
+        # dropna=False: a run whose errors are all NaN (e.g. no tick in the window) still shows
+        wide = err.pivot_table(
+            index="run_id", columns="col", values="value", aggfunc="first", dropna=False
+        )
         times = metrics[metrics["metric"].isin(["t_total_median_us", "t_solve_median_us"])]
         times = times[times["task"] == "*"]
-        wide_t = times.pivot_table(index="run_id", columns="metric", values="value")
+        wide_t = times.pivot_table(index="run_id", columns="metric", values="value", dropna=False)
         table = table.join(wide, on="run_id").join(wide_t, on="run_id")
     return table.drop(columns=["run_id"])
 

@@ -7,14 +7,17 @@ settings and code version) is skipped, so an interrupted command resumes where i
 
 from __future__ import annotations
 
+import datetime as _dt
 import hashlib
 import json
+import platform
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from wbcbench.bench.checks import CHECK_FACTOR, ReportedCheck
+from wbcbench.bench.provenance import cpu_model
 from wbcbench.bench.results import ResultsStore
 from wbcbench.errors import WbcBenchError
 from wbcbench.metrics.run_metrics import run_metrics
@@ -88,7 +91,16 @@ def base_row(
     kind: str = "tracking",
     extra: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The identifying columns of a run row."""
+    """The identifying columns of a run row. ``settings`` also keeps what produced it: the
+    scenario's overrides and duration, and when and where it ran."""
+    info = {
+        "overrides": list(loaded.overrides),
+        "duration_s": loaded.spec.duration,
+        **(extra or {}),
+        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "host": platform.node(),
+        "cpu": cpu_model(),
+    }
     return dict(
         run_id=rid,
         scenario=loaded.name,
@@ -103,7 +115,7 @@ def base_row(
         seed=0,
         code_version=version,
         kind=kind,
-        settings=json.dumps(extra or {}, sort_keys=True),
+        settings=json.dumps(info, sort_keys=True),
     )
 
 
