@@ -509,3 +509,20 @@ def test_a_timing_row_records_what_the_machine_was_doing(tmp_path: Path) -> None
     )
     assert conditions["blas_threads"] == 1  # the sweep times with one BLAS thread
     assert conditions["load_1min"] >= 0 and "load_1min_after" in conditions
+
+
+def test_provenance_keeps_each_code_version_that_wrote_to_a_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from wbcbench.bench import provenance as prov
+    from wbcbench.bench import results
+
+    results.ResultsStore(tmp_path)
+    results.ResultsStore(tmp_path)  # same code: no new entry
+    first = json.loads((tmp_path / "provenance.json").read_text())
+    assert first["history"] == []
+    monkeypatch.setattr(results, "provenance", lambda: {**prov.provenance(), "source_hash": "x"})
+    results.ResultsStore(tmp_path)
+    info = json.loads((tmp_path / "provenance.json").read_text())
+    assert info["source_hash"] == "x"
+    assert [h["source_hash"] for h in info["history"]] == [first["source_hash"]]

@@ -77,6 +77,14 @@ class ResultsStore:
             except json.JSONDecodeError:
                 previous = {}
         info["scenarios"] = previous.get("scenarios", {})
+        # each earlier opening's provenance is kept: rows written then carry its code version
+        history = previous.pop("history", [])
+        previous.pop("scenarios", None)
+        if previous and previous.get("source_hash") != info.get("source_hash"):
+            history.append(previous)
+        elif previous:
+            info["first_opened"] = previous.get("first_opened", previous.get("date"))
+        info["history"] = history
         self.provenance = info
         _write_atomically(path, json.dumps(info, indent=2, sort_keys=True) + "\n")
 
