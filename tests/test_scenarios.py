@@ -16,6 +16,7 @@ from wbcbench.scenarios.load import (
     available_scenarios,
     check_against_robot,
     load_scenario,
+    load_scenario_robot,
 )
 
 BASE = SCENARIO_DIR / "tocabi_stand_sway.yaml"
@@ -180,3 +181,14 @@ def test_impl_choices_are_named(tmp_path: Path) -> None:
     assert error_of(BASE, ("controllers.kin_hqp.impl=native",)) == (
         f"{BASE}: controllers.kin_hqp.impl: invalid value 'native'; valid choices: 'python'"
     )
+
+
+def test_the_readme_scenario_example_validates(tmp_path: Path) -> None:
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme[readme.index("## Scenarios") :]
+    start = section.index("```yaml\n") + len("```yaml\n")
+    example = tmp_path / "example.yaml"
+    example.write_text(section[start : section.index("```", start)])
+    loaded = load_scenario(example)
+    check_against_robot(loaded, load_scenario_robot(loaded))
+    assert loaded.spec.robot == "tocabi_like" and len(loaded.spec.contacts) == 2
