@@ -355,3 +355,23 @@ def test_timing_tables_never_mix_impls() -> None:
     assert impl_note(alone).startswith("Times of the native ticks")
     # the impl is a column of its own, not part of the config a table selects on
     assert [_config(r) for _, r in runs.iterrows()] == ["", "", ""]
+
+
+def test_papers_md_opens_with_a_verdict_for_every_claim(tmp_path: Path) -> None:
+    import shutil
+
+    from wbcbench.report.tables import write_tables
+    from wbcbench.report.verdicts import CLAIMS, VERDICTS
+
+    folder = tmp_path / "reference"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "results" / "reference", folder)
+    papers = write_tables(folder).read_text()
+    first_section = papers[papers.index("\n## ") :]
+    assert first_section.startswith("\n## What was reproduced")
+    table = pd.read_csv(folder / "tables" / "verdicts.csv")
+    assert len(table) == len(CLAIMS) == 14  # the rows of DESIGN §8
+    assert set(table["verdict"]) <= set(VERDICTS)
+    assert table["reason"].notna().all()
+    # a run that fell is said where its numbers are used
+    s2 = table[table["claim"].str.startswith("S2")].iloc[0]
+    assert "fell" in s2["reason"]

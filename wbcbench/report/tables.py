@@ -1108,6 +1108,12 @@ def write_tables(folder: str | Path) -> Path:
         "Compare ratios; absolute times come from different CPUs and languages (the papers: C++).",
         "",
     ]
+    from wbcbench.report.verdicts import markdown, verdicts
+
+    verdict_frame = verdicts(tables)
+    verdict_frame.to_csv(out / "verdicts.csv", index=False)
+    (out / "verdicts.md").write_text(markdown(verdict_frame))
+    parts.append(markdown(verdict_frame))
     for table in tables:
         md = table.markdown()
         (out / f"{table.name}.md").write_text(md)
