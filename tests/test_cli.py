@@ -145,3 +145,35 @@ def test_a_run_row_records_its_overrides_duration_and_when(tmp_path: Path, capsy
     assert settings["overrides"] == [s for s in TINY_SET if s != "--set"]
     assert settings["duration_s"] == pytest.approx(float(TINY_SET[1].split("=")[1]))
     assert {"date", "host", "cpu"} <= set(settings)
+
+
+def test_compare_marks_changes_outside_the_noise(tmp_path: Path, capsys) -> None:
+    import shutil
+
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(
+        "version: 1\ntracking:\n  - scenarios: [tocabi_stand_sway]\n    controllers: [qp_wbc]\n"
+        "    solvers: [daqp]\n    set: ['duration=0.05', 'metrics.window=[0.0, 0.05]']\n"
+        "timing:\n  - scenarios: [tocabi_stand_sway]\n    controllers: [qp_wbc]\n"
+        "    solvers: [daqp, quadprog]\n    modes: [hot]\n    ticks: 30\n    warmup: 5\n"
+        "    set: ['duration=0.3']\n"
+    )
+    a, b = tmp_path / "A", tmp_path / "B"
+    assert main(["sweep", str(sweep), "--out", str(a), "--no-progress"]) == 0
+    shutil.copytree(a, b)
+    metrics = pd.read_csv(b / "metrics.csv")
+    runs = pd.read_csv(b / "runs.csv")
+    slow = runs[(runs["kind"] == "timing") & (runs["solver"] == "daqp")]["run_id"].iloc[0]
+    timed = (metrics["run_id"] == slow) & metrics["metric"].str.startswith("t_total_median")
+    metrics.loc[timed, "value"] *= 3.0  # daqp three times slower, intervals apart
+    metrics.loc[metrics["metric"] == "err_mean", "value"] *= 1.01
+    metrics.to_csv(b / "metrics.csv", index=False)
+    capsys.readouterr()
+    assert main(["compare", str(a), str(b), "--out", str(tmp_path / "c.md")]) == 0
+    out = capsys.readouterr().out
+    assert "1 slower, 1 within noise" in out or "1 within noise, 1 slower" in out
+    assert (tmp_path / "c.md").read_text() + "\n" == out
+    tracking = out[out.index("## Tracking") :]
+    assert "changed" in tracking and "same" not in tracking.splitlines()[2]
+    timing = out[out.index("## Timing") : out.index("## Tracking")]
+    assert "| daqp " in timing and "slower" in timing

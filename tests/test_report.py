@@ -375,3 +375,24 @@ def test_papers_md_opens_with_a_verdict_for_every_claim(tmp_path: Path) -> None:
     # a run that fell is said where its numbers are used
     s2 = table[table["claim"].str.startswith("S2")].iloc[0]
     assert "fell" in s2["reason"]
+
+
+def test_the_median_comes_with_a_block_bootstrap_interval() -> None:
+    import numpy as np
+
+    from wbcbench.metrics.timing import median_ci, timing_stats
+
+    rng = np.random.default_rng(5)
+    x = rng.gamma(5.0, 1e-4, 2000)
+    lo, hi = median_ci(x)
+    assert lo < float(np.median(x)) < hi and median_ci(x) == (lo, hi)  # seeded
+    narrow = median_ci(x[:2000])
+    wide = median_ci(x[:100])
+    assert narrow[1] - narrow[0] < wide[1] - wide[0]
+    stats = timing_stats(x)
+    assert stats["median_ci_lo_us"] == pytest.approx(1e6 * lo)
+    # a series whose halves differ (a slow drift) gets a wider interval than its shuffled self
+    drift = np.concatenate([x[:1000], 1.5 * x[1000:]])
+    shuffled = rng.permutation(drift)
+    d, s = median_ci(drift), median_ci(shuffled)
+    assert d[1] - d[0] > s[1] - s[0]

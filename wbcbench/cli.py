@@ -347,6 +347,16 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from wbcbench.report.compare import markdown
+
+    text = markdown(_results_dir(args.before), _results_dir(args.after))
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text)
+    return 0
+
+
 def _results_dir(path: str) -> Path:
     folder = Path(path)
     if not folder.is_dir():
@@ -490,6 +500,16 @@ def build_parser() -> argparse.ArgumentParser:
         if name == "tables":
             p.add_argument("--print", action="store_true", help="print the tables")
         p.set_defaults(func=func)
+
+    p = sub.add_parser(
+        "compare",
+        help="two results folders side by side (before / after a change): the change per "
+        "combination, marked significant only outside the noise",
+    )
+    p.add_argument("before", metavar="A", help="the results folder before the change")
+    p.add_argument("after", metavar="B", help="the results folder after the change")
+    p.add_argument("--out", metavar="FILE.md", help="also write the comparison to this file")
+    p.set_defaults(func=_cmd_compare)
 
     p = sub.add_parser("replay", help="solve a dumped QP (.npz) again with one or more solvers")
     p.add_argument("problem", metavar="PROBLEM.npz", help="a QP saved by a run or a sweep")
