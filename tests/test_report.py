@@ -396,3 +396,15 @@ def test_the_median_comes_with_a_block_bootstrap_interval() -> None:
     shuffled = rng.permutation(drift)
     d, s = median_ci(drift), median_ci(shuffled)
     assert d[1] - d[0] > s[1] - s[0]
+
+
+def test_each_papers_key_figure_is_drawn_from_its_table(tmp_path: Path) -> None:
+    import shutil
+
+    from wbcbench.report.paper_figures import FIGURES, write_paper_figures
+
+    folder = tmp_path / "reference"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "results" / "reference", folder)
+    names = {p.name for p in write_paper_figures(folder)}
+    for table in FIGURES:
+        assert f"paper_{table}.png" in names and f"paper_{table}.svg" in names

@@ -6,7 +6,9 @@
 * ``levels``: mean QP time per hierarchy level and controller;
 * ``timing_solvers``: median step time per controller and solver;
 * ``solvers_success`` / ``solvers_time``: the solver comparison;
-* ``rqr_fig1``: hierarchy time against the problem size N.
+* ``rqr_fig1``: hierarchy time against the problem size N;
+* ``paper_*``: each paper's key comparison beside the paper's numbers
+  (:mod:`wbcbench.report.paper_figures`).
 """
 
 from __future__ import annotations
@@ -268,4 +270,6 @@ def write_plots(folder: str | Path) -> list[Path]:
         hls_figure,
     ):
         paths += fn(res, out)
-    return paths
+    from wbcbench.report.paper_figures import write_paper_figures
+
+    return paths + write_paper_figures(folder, res)

@@ -83,8 +83,19 @@ def _s2(f: pd.DataFrame) -> tuple[str, str, str]:
     fell = " Both runs fell before the window's end; the amendments are averaged up to it." * (
         "fell" in status
     )
-    reason = f"identical weighting amends {ours:.3g}× less (paper {paper:g}×).{fell}"
-    return f"{ours:.3g}×", speedup(ours, paper), reason
+    # the paper: with identical weighting T1/T2 errors are larger, T3/T4 smaller, i.e. the
+    # priority / identical error ratio is below 1 for T1, T2 and above 1 for T3, T4
+    errors = f.iloc[1:5]["ours priority / identical"].astype(float).to_numpy()
+    expected = np.array([False, False, True, True])[: len(errors)]
+    agree = int(((errors > 1.0) == expected).sum())
+    verdict = speedup(ours, paper)
+    if verdict == "reproduced" and agree < len(errors):
+        verdict = "partly"
+    reason = (
+        f"identical weighting amends {ours:.3g}× less (paper {paper:g}×); "
+        f"{agree} of {len(errors)} task errors move the way the paper's do.{fell}"
+    )
+    return f"{ours:.3g}×", verdict, reason
 
 
 def _s4(f: pd.DataFrame) -> tuple[str, str, str]:
