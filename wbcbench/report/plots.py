@@ -20,6 +20,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from matplotlib.ticker import FuncFormatter, MaxNLocator
 import numpy as np
 import pandas as pd
 
@@ -44,6 +45,26 @@ def _label(row: pd.Series) -> str:
     return f"{row['controller']}{cfg} ({row['solver']})"
 
 
+LINESTYLES = ("-", "--", ":", "-.")
+
+
+def _style(k: int) -> dict[str, Any]:
+    """The k-th series' colour and line style: ten colours × four styles before a repeat."""
+    return {"color": plt.get_cmap("tab10")(k % 10), "linestyle": LINESTYLES[(k // 10) % 4]}
+
+
+def _window(res: Results, scenario: str) -> tuple[float, float] | None:
+    from wbcbench.report.tables import scenario_spec
+
+    spec = scenario_spec(res, scenario)
+    return None if spec is None or spec.metrics.window is None else tuple(spec.metrics.window)
+
+
+def _shade(ax: Any, window: tuple[float, float] | None) -> None:
+    if window is not None:
+        ax.axvspan(*window, color="#f2e6b3", alpha=0.5, lw=0, zorder=0)
+
+
 def _thin(df: pd.DataFrame) -> pd.DataFrame:
     step = max(1, len(df) // MAX_POINTS)
     return df.iloc[::step]
@@ -60,40 +81,50 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
         if not logs:
             continue
         err_cols = sorted({c for _, lg in logs for c in lg.columns if c.startswith("err.")})
+        window = _window(res, str(scenario))
         if err_cols:
             fig, axes = plt.subplots(
-                len(err_cols), 1, figsize=(7, 1.8 * len(err_cols) + 0.6), sharex=True, squeeze=False
+                len(err_cols), 1, figsize=(8, 1.7 * len(err_cols) + 0.8), sharex=True, squeeze=False
             )
             for ax, col in zip(axes[:, 0], err_cols, strict=True):
                 task, part = col.split(".")[1:3]
-                for row, lg in logs:
+                for k, (row, lg) in enumerate(logs):
                     if col in lg.columns:
                         d = _thin(lg)
-                        ax.plot(d["t"], d[col], label=_label(row), lw=1)
-                ax.set_ylabel(f"{task} {part}\n[{ERROR_UNITS.get(part, '-')}]")
-                ax.grid(alpha=0.3)
+                        y = d[col].where(d[col] > 0)  # a log axis: exact zeros are not drawn
+                        ax.plot(d["t"], y, label=_label(row), lw=1, **_style(k))
+                name = task if part == task else f"{task} ({part})"
+                ax.set_ylabel(f"{name}\n[{ERROR_UNITS.get(part, '-')}] (log)", fontsize=8)
+                ax.set_yscale("log")
+                ax.grid(alpha=0.3, which="both")
+                _shade(ax, window)
             axes[-1, 0].set_xlabel("time [s]")
-            axes[0, 0].legend(fontsize=7, loc="upper right")
-            fig.suptitle(f"Tracking-error norms — {scenario}", fontsize=10)
+            axes[0, 0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+            fig.suptitle(f"Tracking-error norms — {scenario} (shaded: metrics window)", fontsize=10)
             paths += _save(fig, out, f"tracking_{scenario}")
         amend = sorted({c for _, lg in logs for c in lg.columns if c.startswith("diag.amend.")})
         if amend:
-            fig, ax = plt.subplots(figsize=(7, 3))
+            fig, ax = plt.subplots(figsize=(8, 3.2))
+            k = 0
             for row, lg in logs:
                 d = _thin(lg)
                 for c in amend:
                     if c in d.columns:
                         ax.plot(
                             d["t"],
-                            d[c],
+                            d[c].where(d[c] > 0),
                             lw=1,
                             label=f"{c.removeprefix('diag.amend.')} — {_label(row)}",
+                            **_style(k),
                         )
+                        k += 1
             ax.set_xlabel("time [s]")
-            ax.set_ylabel("‖ẍ_opt − ẍ*‖ [m/s² or rad/s²]")
+            ax.set_ylabel("‖ẍ_opt − ẍ*‖ [m/s² or rad/s²] (log)")
+            ax.set_yscale("log")  # a fall's spike does not flatten the rest
             ax.set_title(f"Task-acceleration amendments — {scenario}", fontsize=10)
-            ax.legend(fontsize=6)
-            ax.grid(alpha=0.3)
+            ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+            ax.grid(alpha=0.3, which="both")
+            _shade(ax, window)
             paths += _save(fig, out, f"amendments_{scenario}")
     return paths
 
@@ -147,11 +178,16 @@ def size_figures(res: Results, out: Path) -> list[Path]:
     ):
         for name, g in t.groupby("series"):
             series = g.groupby(col)["median_us"].median().sort_index()
-            ax.plot(series.index, series.to_numpy() / 1e3, "o-", label=name)
+            # markers only: points of different scenarios differ in more than this size
+            ax.plot(series.index, series.to_numpy() / 1e3, "o", label=name, alpha=0.8)
         ax.set_xlabel(label)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("median step time [ms]")
-    axes[-1].legend(fontsize=7)
+    axes[0].set_ylabel("median step time [ms] (log)")
+    axes[0].set_yscale("log")
+    axes[0].yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    axes[0].yaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    axes[-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.suptitle(
         f"Compute time vs problem size ({default_solver()}, open-loop replay)", fontsize=10
     )
@@ -172,25 +208,40 @@ def level_figure(res: Results, out: Path) -> list[Path]:
 
     picked = _pick_timing(runs[runs["run_id"].isin(m["run_id"])], "qpoases")
     m = m[m["run_id"].isin(picked["run_id"])]
-    labels = [f"{r.scenario}\n{r.controller}" for r in picked.itertuples()]
-    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(labels)), 3.6))
-    bottom = np.zeros(len(picked))
-    levels = sorted(m["task"].astype(str).unique())
-    for level in levels:
-        vals = np.array(
-            [
-                float(m[(m["run_id"] == rid) & (m["task"] == level)]["value"].sum()) / 1e3
-                for rid in picked["run_id"]
-            ]
-        )
-        ax.bar(labels, vals, bottom=bottom, label=level)
-        bottom += vals
-    ax.set_ylabel("mean QP time per level [ms]")
+    # one facet per hierarchical controller, its scenarios side by side, its levels stacked
+    controllers = sorted(picked["controller"].unique())
+    ncols = min(3, len(controllers))
+    nrows = -(-len(controllers) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.6 * ncols, 4.6 * nrows), squeeze=False)
+    for ax in axes.ravel()[len(controllers) :]:
+        ax.set_visible(False)
+    for ax, controller in zip(axes.ravel(), controllers, strict=False):
+        # one bar per scenario (a scenario's variants and robots: its first)
+        runs_c = picked[picked["controller"] == controller].drop_duplicates("scenario")
+        scenarios = [str(s) for s in runs_c["scenario"]]
+        levels = sorted(m[m["run_id"].isin(runs_c["run_id"])]["task"].astype(str).unique())
+        bottom = np.zeros(len(runs_c))
+        for k, level in enumerate(levels):
+            vals = np.array(
+                [
+                    float(m[(m["run_id"] == rid) & (m["task"] == level)]["value"].sum()) / 1e3
+                    for rid in runs_c["run_id"]
+                ]
+            )
+            ax.bar(range(len(vals)), vals, bottom=bottom, label=level, color=_level_color(k))
+            bottom += vals
+        ax.set_xticks(range(len(scenarios)), scenarios, rotation=35, ha="right", fontsize=7)
+        ax.set_title(controller, fontsize=9)
+        ax.set_ylabel("mean QP time per level [ms]", fontsize=8)
+        ax.grid(axis="y", alpha=0.3)
+        ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.0, 1.0), title="level")
     impl = ", ".join(sorted(set(_impl_of(picked))))
-    ax.set_title(f"Per-level QP solve time (stacked; impl: {impl})", fontsize=10)
-    ax.legend(fontsize=7, ncol=2)
-    ax.tick_params(axis="x", labelsize=7)
+    fig.suptitle(f"Per-level QP solve time, stacked (impl: {impl})", fontsize=10)
     return _save(fig, out, "levels")
+
+
+def _level_color(k: int) -> Any:
+    return plt.get_cmap("tab20")(k % 20)
 
 
 def timing_solver_figure(res: Results, out: Path) -> list[Path]:
