@@ -52,8 +52,9 @@ upgrade: $(LOCK_VENV)/bin/pip-compile
 	@$(MAKE) --no-print-directory test || { echo "== the tests FAIL with the upgraded lock;" \
 		"'git checkout $(LOCK)' returns to the tested set"; exit 1; }
 
+# one worker per core (pytest-xdist); each worker runs its tests with one BLAS thread
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check wbcbench tests benchmarks
