@@ -1,8 +1,9 @@
 """The native hierarchical least squares against the Python reference, on the same stacks.
 
-The reduced QR with active sets must give the reference's x to 1e-10, the same ranks and
-null-space sizes, and, with inequalities, the same active sets: the same number of active and
-saturated rows and iterations per level, and the same rows tight at every level's solution.
+The three algorithms (reduced QR with active sets, full-coordinate QR, SVD task priority) must
+give the reference's x to 1e-10, the same ranks and null-space sizes, and, with inequalities,
+the same active sets: the same number of active and saturated rows and iterations per level, and
+the same rows tight at every level's solution.
 """
 
 from __future__ import annotations
@@ -13,8 +14,8 @@ import pytest
 from wbcbench import _native
 from wbcbench.errors import SolverError, WbcBenchError
 from wbcbench.qp.hls import HlsResult, Level, solve_hls
-from wbcbench.qp.hls_baselines import fig1_stack
-from wbcbench.qp.hls_native import NativeHls, solve_hls_native
+from wbcbench.qp.hls_baselines import ALGORITHMS, fig1_stack, get_algorithm
+from wbcbench.qp.hls_native import NativeHls, solve_hls_native, solve_svd_hierarchy_native
 
 from .test_hls import _equality_stack, _inequality_stack, _singular_stack
 
@@ -58,20 +59,23 @@ def assert_same(native: HlsResult, ref: HlsResult, levels: list[Level], what: st
 
 
 @pytest.mark.parametrize("n", [10, 20, 40, 60, 80, 100])
-def test_fig1_stacks(n: int) -> None:
+@pytest.mark.parametrize("algorithm", list(ALGORITHMS))
+def test_fig1_stacks(algorithm: str, n: int) -> None:
     levels = fig1_stack(n)
-    assert_same(solve_hls_native(levels), solve_hls(levels), levels, f"N={n}")
+    ref = get_algorithm(algorithm, "python")(levels)
+    assert_same(get_algorithm(algorithm, "native")(levels), ref, levels, f"{algorithm} N={n}")
 
 
 @pytest.mark.parametrize("n", [6, 13, 30, 61])
 @pytest.mark.parametrize("posture", [False, True])
 @pytest.mark.parametrize("damping", [0.0, 0.1])
-def test_random_equality_stacks(n: int, posture: bool, damping: float) -> None:
+@pytest.mark.parametrize("algorithm", list(ALGORITHMS))
+def test_random_equality_stacks(algorithm: str, n: int, posture: bool, damping: float) -> None:
     for seed in range(3):
         levels = _equality_stack(n, seed, posture)
-        ref = solve_hls(levels, damping=damping)
-        got = solve_hls_native(levels, damping=damping)
-        assert_same(got, ref, levels, f"n={n} seed={seed}")
+        ref = get_algorithm(algorithm, "python")(levels, damping=damping)
+        got = get_algorithm(algorithm, "native")(levels, damping=damping)
+        assert_same(got, ref, levels, f"{algorithm} n={n} seed={seed}")
 
 
 @pytest.mark.parametrize("n", [8, 15, 24])
@@ -118,9 +122,10 @@ def test_singular_stack_damped_and_undamped() -> None:
     for theta, dampings in ((-0.01, (None, damped)), (0.0, (None, damped)), (1e-6, (damped,))):
         levels = _singular_stack(theta)
         for damping in dampings:
-            ref = solve_hls(levels, damping=damping)
-            got = solve_hls_native(levels, damping=damping)
-            assert_same(got, ref, levels, f"theta={theta}")
+            for algorithm in ALGORITHMS:
+                ref = get_algorithm(algorithm, "python")(levels, damping=damping)
+                got = get_algorithm(algorithm, "native")(levels, damping=damping)
+                assert_same(got, ref, levels, f"{algorithm} theta={theta}")
 
 
 def test_a_solver_is_reused_across_stacks_of_other_sizes() -> None:
@@ -138,5 +143,7 @@ def test_failures_raise_as_the_reference_does() -> None:
     with pytest.raises(SolverError) as got:
         solve_hls_native(levels, max_iter=1)
     assert str(got.value) == str(ref.value) == "active set did not converge in 1 iterations"
+    with pytest.raises(WbcBenchError, match="equality-only"):
+        solve_svd_hierarchy_native(levels)
     with pytest.raises(WbcBenchError, match="disagree"):
         solve_hls_native([Level(np.eye(2)), Level(np.eye(3))])

@@ -37,7 +37,7 @@ from wbcbench.qp.hls import (
 )
 
 
-def _equality_tasks(levels: Sequence[Level]) -> list[tuple[Array, Array]]:
+def equality_tasks(levels: Sequence[Level]) -> list[tuple[Array, Array]]:
     """(A, b) of every level; the baselines have no inequality handling."""
     tasks = []
     for i, lv in enumerate(levels):
@@ -87,7 +87,7 @@ def solve_svd_hierarchy(
         Solution and per-level statistics (no iterations or active sets).
     """
     t_start = time.perf_counter()
-    tasks, ks = _equality_tasks(levels), level_dampings(levels, damping)
+    tasks, ks = equality_tasks(levels), level_dampings(levels, damping)
     x = start_point(levels, x0)
     n = x.size
     P = np.eye(n)
@@ -132,7 +132,7 @@ def solve_fullqr_hierarchy(
         Solution and per-level statistics (no iterations or active sets).
     """
     t_start = time.perf_counter()
-    tasks, ks = _equality_tasks(levels), level_dampings(levels, damping)
+    tasks, ks = equality_tasks(levels), level_dampings(levels, damping)
     x = start_point(levels, x0)
     n = x.size
     stacked = np.zeros((0, n))
@@ -159,10 +159,20 @@ ALGORITHMS: dict[str, Solver] = {
 }
 
 
-def get_algorithm(name: str) -> Solver:
-    """Look up a hierarchy algorithm by name."""
+#: the implementations of the algorithms: the Python reference, the C++ mirror
+IMPLS = ("python", "native")
+
+
+def get_algorithm(name: str, impl: str = "python") -> Solver:
+    """Look up a hierarchy algorithm by name, in Python or natively."""
     if name not in ALGORITHMS:
         raise UnknownNameError("hierarchy algorithm", name, ALGORITHMS)
+    if impl not in IMPLS:
+        raise UnknownNameError("impl", impl, IMPLS)
+    if impl == "native":
+        from wbcbench.qp.hls_native import NATIVE_ALGORITHMS
+
+        return NATIVE_ALGORITHMS[name]
     return ALGORITHMS[name]
 
 

@@ -1,5 +1,5 @@
-"""The native hierarchical least squares: the C++ mirror of :mod:`wbcbench.qp.hls`
-(``wbcbench/_native/src/qp/hls.cpp``).
+"""The native hierarchical least squares: the C++ mirror of :mod:`wbcbench.qp.hls` and of the two
+baselines of :mod:`wbcbench.qp.hls_baselines` (``wbcbench/_native/src/qp/hls.cpp``).
 
 The same algorithms step for step (column-pivoted Householder QR as LAPACK's ``dgeqp3`` does it,
 the orthogonal factor applied and never formed, Tikhonov damping with the basis from the
@@ -8,10 +8,11 @@ the least-violation phase) and the same per-level statistics, in buffers the nat
 keeps: solving a stack of the same sizes again allocates nothing.
 
 :class:`NativeHls` holds one native solver: :meth:`NativeHls.load` copies a stack of
-:class:`~wbcbench.qp.hls.Level` into it, :meth:`NativeHls.solve` solves it and returns the
-:class:`~wbcbench.qp.hls.HlsResult` the Python function returns; its ``time`` and the levels'
-times are measured inside the module. ``solve_hls_native`` takes the arguments of
-``solve_hls``.
+:class:`~wbcbench.qp.hls.Level` into it, :meth:`NativeHls.solve` runs one of the three
+algorithms and returns the :class:`~wbcbench.qp.hls.HlsResult` the Python function returns;
+its ``time`` and the levels' times are measured inside the module. ``solve_hls_native``,
+``solve_fullqr_hierarchy_native`` and ``solve_svd_hierarchy_native`` take the arguments of
+their Python counterparts.
 """
 
 from __future__ import annotations
@@ -24,9 +25,7 @@ import numpy as np
 from wbcbench import _native
 from wbcbench.errors import SolverError, WbcBenchError
 from wbcbench.qp.hls import Array, HlsResult, Level, LevelStats, level_dampings, start_point
-
-#: the algorithms the native solver runs, by the names of ``hls_baselines.ALGORITHMS``
-ALGORITHMS = ("reduced_qr",)
+from wbcbench.qp.hls_baselines import ALGORITHMS, Solver, equality_tasks
 
 
 def _core() -> Any:
@@ -127,3 +126,39 @@ def solve_hls_native(
     solver = NativeHls()
     solver.load(levels, damping)
     return solver.solve("reduced_qr", start_point(levels, x0), rank_tol, feas_tol, max_iter)
+
+
+def solve_fullqr_hierarchy_native(
+    levels: Sequence[Level],
+    *,
+    damping: float | Sequence[float] | None = None,
+    x0: Array | None = None,
+    rank_tol: float = 1e-9,
+) -> HlsResult:
+    """:func:`wbcbench.qp.hls_baselines.solve_fullqr_hierarchy`, natively."""
+    equality_tasks(levels)
+    solver = NativeHls()
+    solver.load(levels, damping)
+    return solver.solve("full_qr", start_point(levels, x0), rank_tol)
+
+
+def solve_svd_hierarchy_native(
+    levels: Sequence[Level],
+    *,
+    damping: float | Sequence[float] | None = None,
+    x0: Array | None = None,
+    rank_tol: float = 1e-9,
+) -> HlsResult:
+    """:func:`wbcbench.qp.hls_baselines.solve_svd_hierarchy`, natively."""
+    equality_tasks(levels)
+    solver = NativeHls()
+    solver.load(levels, damping)
+    return solver.solve("svd", start_point(levels, x0), rank_tol)
+
+
+#: the native counterpart of each of ``hls_baselines.ALGORITHMS``
+NATIVE_ALGORITHMS: dict[str, Solver] = {
+    "reduced_qr": solve_hls_native,
+    "full_qr": solve_fullqr_hierarchy_native,
+    "svd": solve_svd_hierarchy_native,
+}

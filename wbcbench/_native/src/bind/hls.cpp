@@ -45,7 +45,9 @@ nb::list stats_list(const HlsSolver& s) {
 
 void bind_hls(nb::module_& m) {
   nb::enum_<HlsAlgorithm>(m, "HlsAlgorithm")
-      .value("reduced_qr", HlsAlgorithm::kReducedQr);
+      .value("reduced_qr", HlsAlgorithm::kReducedQr)
+      .value("full_qr", HlsAlgorithm::kFullQr)
+      .value("svd", HlsAlgorithm::kSvd);
 
   nb::class_<HlsOptions>(m, "HlsOptions")
       .def(nb::init<>())
@@ -54,7 +56,7 @@ void bind_hls(nb::module_& m) {
       .def_rw("max_iter", &HlsOptions::max_iter);
 
   nb::class_<HlsSolver>(m, "HlsSolver",
-                        "A stack of least-squares levels and the hierarchy algorithm.")
+                        "A stack of least-squares levels and the three hierarchy algorithms.")
       .def(nb::init<>())
       .def("resize", &HlsSolver::resize, nb::arg("n_levels"), nb::arg("n"))
       .def_prop_ro("n_levels", &HlsSolver::n_levels)

@@ -547,7 +547,18 @@ bool HlsSolver::solve(HlsAlgorithm algorithm, const Eigen::Ref<const Vector>& x0
   message_.clear();
   x_ = x0;
   if (stats_.size() > levels_.size()) stats_.resize(levels_.size());
-  const bool ok = algorithm == HlsAlgorithm::kReducedQr && reduced_qr(options);
+  bool ok = false;
+  if (algorithm == HlsAlgorithm::kReducedQr) {
+    ok = reduced_qr(options);
+  } else {
+    for (std::size_t i = 0; i < levels_.size(); ++i) {
+      const HlsLevel& lv = levels_[i];
+      if (lv.has_ineq || !lv.has_task)
+        return fail("level " + (lv.name.empty() ? std::to_string(i) : lv.name) +
+                    ": the SVD / full-QR baselines take equality-only levels");
+    }
+    ok = algorithm == HlsAlgorithm::kFullQr ? full_qr(options) : svd(options);
+  }
   time_ = seconds_since(t0);
   return ok;
 }

@@ -1,5 +1,6 @@
 // Hierarchical least squares with regularised QR in reduced coordinates: the native mirror of
-// wbcbench/qp/hls.py (the RQR-HQP paper's method, §II–III).
+// wbcbench/qp/hls.py (the RQR-HQP paper's method, §II–III), and of the two baselines of
+// wbcbench/qp/hls_baselines.py (the SVD task-priority algorithm and the full-coordinate QR).
 //
 // Same steps, tolerances and per-level statistics as the Python reference, so the two agree to
 // round-off: column-pivoted Householder QR kept in compact form (LAPACK dgeqp3's unblocked
@@ -9,11 +10,13 @@
 // saturated rows are carried down as equalities, and the least-violation phase.
 //
 // Every buffer grows to the largest stack seen and is then reused: once a stack of given sizes
-// has been solved, solving it again allocates nothing.
+// has been solved, solving it again allocates nothing (the SVD baseline's Eigen solvers
+// included, one per level).
 #pragma once
 
 #include <Eigen/Core>
 #include <Eigen/Householder>
+#include <Eigen/SVD>
 #include <string>
 #include <vector>
 
@@ -110,10 +113,10 @@ struct HlsOptions {
   int max_iter = 0;  // per active set; 0: 10 (q + rows) + 10
 };
 
-// solve_hls
-enum class HlsAlgorithm { kReducedQr };
+// solve_hls, solve_fullqr_hierarchy, solve_svd_hierarchy
+enum class HlsAlgorithm { kReducedQr, kFullQr, kSvd };
 
-// A stack of levels and the algorithm that solves it (wbcbench.qp.hls.HlsResult is the
+// A stack of levels and the three algorithms that solve it (wbcbench.qp.hls.HlsResult is the
 // result: x, stats(), time; ok false with message() where the reference raises SolverError).
 class HlsSolver {
  public:
@@ -134,6 +137,8 @@ class HlsSolver {
 
  private:
   bool reduced_qr(const HlsOptions& o);
+  bool full_qr(const HlsOptions& o);
+  bool svd(const HlsOptions& o);
   bool equality_level(const HlsLevel& lv, double rank_tol, int& rank);
   bool inequality_level(const HlsLevel& lv, const HlsOptions& o, HlsLevelStats& st);
   bool least_violation(const HlsLevel& lv, const HlsOptions& o, int& iterations);
@@ -177,6 +182,11 @@ class HlsSolver {
   // level scratch
   Vector r_, Cx_, lo_, hi_, y_;
   std::vector<int> kept_;
+
+  // baselines: projector / basis, stacked tasks, SVD per level
+  HlsBuffer proj_, basis_cols_, stacked_;
+  std::vector<Matrix> svd_in_;
+  std::vector<Eigen::JacobiSVD<Matrix>> svd_;
 };
 
 }  // namespace wbcbench
