@@ -14,7 +14,7 @@ import pytest
 from wbcbench import _native
 from wbcbench.errors import SolverError, WbcBenchError
 from wbcbench.qp.hls import HlsResult, Level, solve_hls
-from wbcbench.qp.hls_baselines import ALGORITHMS, fig1_stack, get_algorithm
+from wbcbench.qp.hls_baselines import ALGORITHMS, fig1_stack, get_algorithm, scaling_series
 from wbcbench.qp.hls_native import NativeHls, solve_hls_native, solve_svd_hierarchy_native
 
 from .test_hls import _equality_stack, _inequality_stack, _singular_stack
@@ -147,3 +147,13 @@ def test_failures_raise_as_the_reference_does() -> None:
         solve_svd_hierarchy_native(levels)
     with pytest.raises(WbcBenchError, match="disagree"):
         solve_hls_native([Level(np.eye(2)), Level(np.eye(3))])
+
+
+def test_scaling_series_runs_both_impls() -> None:
+    rows = scaling_series([8, 16], repeats=2)
+    assert len(rows) == 2 * len(ALGORITHMS) * 2
+    assert {(r["algorithm"], r["impl"]) for r in rows} == {
+        (a, i) for a in ALGORITHMS for i in ("python", "native")
+    }
+    assert all(r["median_s"] > 0 and r["max_abs_diff"] < 1e-9 for r in rows)
+    assert all(r["call_median_s"] >= r["median_s"] for r in rows)
