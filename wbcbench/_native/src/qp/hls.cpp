@@ -228,8 +228,8 @@ bool HlsSolver::active_set(Index m, Index q, Index mi, double k, const HlsOption
       shift.noalias() = -(N.transpose() * z);
     else
       shift.setZero();
-    auto Mt = ls_.load(ndim_, m);  // Mᵀ = (F N)ᵀ
-    Mt.noalias() = N.transpose() * F.transpose();
+    auto Mt = ls_.load(ndim_, m);  // Mᵀ = (F N)ᵀ; a few rows: no GEMM blocking
+    Mt.noalias() = N.transpose().lazyProduct(F.transpose());
     auto r = head_of(r_, m);
     r = g;
     r.noalias() -= F * z;
@@ -248,11 +248,13 @@ bool HlsSolver::active_set(Index m, Index q, Index mi, double k, const HlsOption
     if (pnorm > 1e-13 * (1.0 + z.norm())) {
       auto Pp = head_of(Pp_, mi);
       Pp.noalias() = P * p;
+      auto Pz = head_of(Pz_, mi);
+      Pz.noalias() = P * z;
       Index j = -1;
       double alpha = 1.0, best = std::numeric_limits<double>::infinity();
       for (Index i = 0; i < mi; ++i) {
         if (in_working_[i] || !(Pp[i] > 1e-12 * (1.0 + rowsum[i] * pnorm))) continue;
-        const double ratio = std::max(hp[i] - P.row(i).dot(z), 0.0) / Pp[i];
+        const double ratio = std::max(hp[i] - Pz[i], 0.0) / Pp[i];
         if (ratio < best) {
           best = ratio;
           j = i;

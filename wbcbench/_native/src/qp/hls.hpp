@@ -172,7 +172,7 @@ class HlsSolver {
   // its solution z, working set and multipliers
   HlsBuffer F_, P_, N_;
   Eigen::Index ndim_ = 0;
-  Vector g_, hp_, z_, lam_, step_, shift_, rhs_, v_, grad_, Pp_, rowsum_;
+  Vector g_, hp_, z_, lam_, step_, shift_, rhs_, v_, grad_, Pp_, Pz_, rowsum_;
   std::vector<int> working_, saturated_;
   std::vector<char> in_working_;
   PivotedQr face_, ls_, basis_;
