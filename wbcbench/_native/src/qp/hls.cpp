@@ -224,10 +224,12 @@ bool HlsSolver::active_set(Index m, Index q, Index mi, double k, const HlsOption
     const auto N = N_.view(q, ndim_);
     // The damping acts on z + N u; with v = u + Nᵀz it becomes a plain damped problem in v.
     auto shift = head_of(shift_, ndim_);
-    if (k > 0.0)
-      shift.noalias() = -(N.transpose() * z);
-    else
+    if (k > 0.0) {
+      shift.noalias() = N.transpose() * z;  // then negated: a negated product needs a temporary
+      shift = -shift;
+    } else {
       shift.setZero();
+    }
     auto Mt = ls_.load(ndim_, m);  // Mᵀ = (F N)ᵀ; a few rows: no GEMM blocking
     Mt.noalias() = N.transpose().lazyProduct(F.transpose());
     auto r = head_of(r_, m);
@@ -364,7 +366,8 @@ bool HlsSolver::least_violation(const HlsLevel& lv, const HlsOptions& o, int& it
   }
   for (Index i = 0; i < mc; ++i) {
     if (!std::isfinite(lv.l[i])) continue;
-    P.row(row).head(p).noalias() = -(lv.C.row(i) * Z);
+    P.row(row).head(p).noalias() = lv.C.row(i) * Z;
+    P.row(row).head(p) *= -1.0;
     P(row, p + i) = 1.0;
     hp[row++] = Cx[i] - lv.l[i];
   }

@@ -180,7 +180,7 @@ class HlsSolver {
   Vector w_, auxr_, work_;
 
   // level scratch
-  Vector r_, Cx_, lo_, hi_, y_;
+  Vector r_, Cx_, lo_, hi_;
   std::vector<int> kept_;
 
   // baselines: projector / basis, stacked tasks, SVD per level
