@@ -24,7 +24,7 @@ from threadpoolctl import threadpool_limits
 from wbcbench.controllers.base import ControllerContext
 from wbcbench.controllers.kin_hqp import KinHqp, KinHqpConfig
 from wbcbench.dynamics.state import RobotState
-from wbcbench.qp.hls_baselines import scaling_series
+from wbcbench.qp.hls_baselines import default_impls, scaling_series
 from wbcbench.robots.loader import load_robot
 from wbcbench.scenarios.load import (
     build_contacts,
@@ -87,36 +87,52 @@ def _stats_us(x: np.ndarray) -> str:
 
 
 def closed_loop_table() -> None:
-    """Per-iteration times of the three scenarios (warm-up ticks dropped)."""
+    """Per-iteration times of the three scenarios in both impls (warm-up ticks dropped)."""
     for scenario in SCENARIOS:
         loaded = load_scenario(scenario)
-        with threadpool_limits(1):
-            result = run_closed_loop(loaded, RunSettings(controller="kin_hqp"))
-        cols = result.log.arrays()
-        warm = loaded.spec.metrics.timing_warmup
-        n_eq, n_in = int(cols["diag.n_eq"][0]), int(cols["diag.n_ineq"][0])
-        print(f"{scenario}: {result.status}, {result.ticks} ticks, {n_eq} eq / {n_in} ineq rows")
-        levels = sorted(k for k in cols if k.startswith("time.solve."))
-        for key in ["time.total", "time.build", "time.solve", *levels]:
+        for impl in default_impls():
+            cfg = {**controller_settings(loaded, "kin_hqp"), "impl": impl}
+            with threadpool_limits(1):
+                result = run_closed_loop(
+                    loaded, RunSettings(controller="kin_hqp", controller_config=cfg)
+                )
+            _print_run(scenario, impl, loaded, result)
+
+
+def _print_run(scenario: str, impl: str, loaded: Any, result: Any) -> None:
+    cols = result.log.arrays()
+    warm = loaded.spec.metrics.timing_warmup
+    n_eq, n_in = int(cols["diag.n_eq"][0]), int(cols["diag.n_ineq"][0])
+    print(
+        f"{scenario} ({impl}): {result.status}, {result.ticks} ticks, {n_eq} eq / {n_in} ineq rows"
+    )
+    levels = sorted(k for k in cols if k.startswith("time.solve."))
+    stages = ["time.total", "time.dynamics", "time.build", "time.solve", "time.solve_internal"]
+    for key in [*stages, *levels]:
+        if key in cols:
             print(f"  {key:<24} {_stats_us(cols[key][warm:])}")
-        iters = cols["iterations"][warm:]
-        active = cols["diag.active"][warm:]
-        print(
-            f"  active-set iterations: median {np.median(iters):.0f}, max {iters.max():.0f}; "
-            f"active rows: median {np.median(active):.0f}, max {active.max():.0f}"
-        )
+    iters = cols["iterations"][warm:]
+    active = cols["diag.active"][warm:]
+    print(
+        f"  active-set iterations: median {np.median(iters):.0f}, max {iters.max():.0f}; "
+        f"active rows: median {np.median(active):.0f}, max {active.max():.0f}"
+    )
 
 
 def fig1_table() -> None:
     """Median time of the three hierarchy algorithms vs N, and their ratios."""
     with threadpool_limits(1):
         rows = scaling_series(FIG1_SIZES, repeats=200)
-    med = {(r["N"], r["algorithm"]): r["median_s"] for r in rows}
-    print(f"{'N':>4} {'reduced_qr':>11} {'full_qr':>11} {'svd':>11} {'full/red':>9} {'svd/red':>8}")
-    for n in FIG1_SIZES:
-        red, full, svd = (med[(n, a)] * 1e6 for a in ("reduced_qr", "full_qr", "svd"))
-        times = f"{red:>9.1f}us {full:>9.1f}us {svd:>9.1f}us"
-        print(f"{n:>4} {times} {full / red:>9.2f} {svd / red:>8.2f}")
+    med = {(r["N"], r["algorithm"], r["impl"]): r["median_s"] for r in rows}
+    for impl in default_impls():
+        print(
+            f"{impl}: {'N':>4} {'reduced_qr':>11} {'full_qr':>11} {'svd':>11} {'full/red':>9} "
+            f"{'svd/red':>8}"
+        )
+        for n in FIG1_SIZES:
+            red, full, svd = (med[(n, a, impl)] * 1e6 for a in ("reduced_qr", "full_qr", "svd"))
+            times = f"{red:>9.1f}us {full:>9.1f}us {svd:>9.1f}us"
+            print(f"{n:>4} {times} {full / red:>9.2f} {svd / red:>8.2f}")
     print("closed loop, rqr_gaze, equality-only hierarchy (solve stage per tick):")
     for hierarchy in ("rqr", "full_qr", "svd"):
         loaded = load_scenario("rqr_gaze")

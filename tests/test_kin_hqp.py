@@ -14,6 +14,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from wbcbench import _native
 from wbcbench.controllers.kin_hqp import GazeTask, KinHqp, KinHqpConfig, default_self_pairs
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import WbcBenchError
@@ -36,6 +37,7 @@ from wbcbench.tasks.collision import (
 )
 
 from .conftest import random_standing_state
+from .test_native_hls import assert_same
 
 Array = np.ndarray
 
@@ -312,6 +314,62 @@ def test_baseline_hierarchies_agree_without_inequalities(comanplus: Robot) -> No
     np.testing.assert_allclose(outs["full_qr"], outs["rqr"], atol=1e-9)
     with pytest.raises(ValueError, match="hierarchy 'svd' handles equality levels only"):
         KinHqpConfig(hierarchy="svd")
+
+
+@pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
+@pytest.mark.parametrize(
+    ("scenario", "settings", "jitter"),
+    [
+        ("rqr_stress", {}, 0.0),
+        ("rqr_stress", {}, 0.03),
+        ("rqr_reach", {}, 0.05),
+        ("rqr_gaze", {"velocity_limit": 0.05}, 0.05),
+        ("rqr_gaze", {"base": "floating", "com": "polygon", "velocity_limit": 0.02}, 0.05),
+        ("rqr_gaze", {"damping": 0.0, "velocity_limit": 0.02}, 0.05),
+        ("rqr_gaze", {"hierarchy": "svd", "inequalities": False}, 0.05),
+        ("rqr_gaze", {"hierarchy": "full_qr", "inequalities": False}, 0.05),
+    ],
+    ids=[
+        "stress",
+        "stress-jitter",
+        "reach",
+        "gaze-tight",
+        "floating",
+        "undamped",
+        "svd",
+        "full_qr",
+    ],
+)
+def test_native_impl_equals_the_python_reference(
+    comanplus: Robot, scenario: str, settings: dict[str, Any], jitter: float
+) -> None:
+    """Same states, the same levels (built in Python by either impl): q̇ to 1e-10 and the same
+    active sets, level by level."""
+    py = controller_for(comanplus, scenario, impl="python", **settings)
+    nat = controller_for(comanplus, scenario, impl="native", **settings)
+    assert (py.impl, nat.impl) == ("python", "native")
+    rng = np.random.default_rng(8)
+    active = 0
+    for tick in range(5):
+        q, v = random_standing_state(comanplus, rng, q_noise=jitter)
+        if jitter == 0.0:
+            q = comanplus.keyframe("stand")[0]
+        t = 0.1 * tick
+        problem = py.build(RobotState(comanplus, q, v), t)
+        ref, got = py.solve(problem), nat.solve(problem)
+        assert_same(got, ref, problem.levels, f"{scenario} tick {tick}")
+        active += sum(s.n_active for s in ref.levels)
+        out_py = py.step(RobotState(comanplus, q, v), t)
+        out_nat = nat.step(RobotState(comanplus, q, v), t)
+        assert out_py.ok and out_nat.ok, (out_py.message, out_nat.message)
+        assert out_py.qd is not None and out_nat.qd is not None
+        assert np.abs(out_nat.qd - out_py.qd).max() <= 1e-10
+        for key, value in out_py.diagnostics.items():
+            if key.startswith(("iter.", "active.", "n_")) or key == "active":
+                assert out_nat.diagnostics[key] == value, key
+        assert out_nat.timings["solve_internal"] <= out_nat.timings["solve"]
+    if settings.get("inequalities", True):
+        assert active > 0, "the states should activate inequalities"
 
 
 def test_applies_only_to_kinematic_scenarios() -> None:

@@ -240,10 +240,10 @@ def test_impl_is_chosen_and_checked() -> None:
     ctx = scenario_context(loaded, robot, solver="daqp")
     assert make_controller("qp_wbc", ctx).impl == "native"
     assert make_controller("rc_lqp", ctx).impl == "native"
-    # kin_hqp (velocity level) has no native tick: python is its only impl
-    assert make_controller("kin_hqp", ctx).impl == "python"
-    with pytest.raises(Exception, match="'python'"):
-        make_controller("kin_hqp", ctx, {"impl": "native"})
+    assert make_controller("kin_hqp", ctx).impl == "native"
+    assert make_controller("kin_hqp", ctx, {"impl": "python"}).impl == "python"
+    with pytest.raises(Exception, match="'native' or 'python'"):
+        make_controller("kin_hqp", ctx, {"impl": "fast"})
 
 
 def test_impl_default_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -253,8 +253,9 @@ def test_impl_default_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> N
     monkeypatch.setenv("WBCBENCH_IMPL", "python")
     assert make_controller("to_osf", ctx).impl == "python"
     assert make_controller("to_osf", ctx, {"impl": "native"}).impl == "native"
+    assert make_controller("kin_hqp", ctx).impl == "python"
     monkeypatch.setenv("WBCBENCH_IMPL", "native")
-    assert make_controller("kin_hqp", ctx).impl == "python"  # no native tick: its only impl
+    assert make_controller("kin_hqp", ctx).impl == "native"
     monkeypatch.setenv("WBCBENCH_IMPL", "fast")
     with pytest.raises(ControllerError) as err:
         make_controller("to_osf", ctx)

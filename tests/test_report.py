@@ -7,6 +7,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from wbcbench import _native
 from wbcbench.bench.results import ResultsStore
 from wbcbench.bench.sweep import load_sweep_file, plan_sweep, run_sweep
 from wbcbench.report import load_results
@@ -52,7 +53,11 @@ def test_every_table_is_written_and_missing_ones_say_which_runs_to_make(smoke: P
         assert (smoke / "tables" / f"{name}.md").exists()
     fig1 = pd.read_csv(smoke / "tables" / "rqr_fig1.csv")
     assert list(fig1["N"]) == [10, 40]
-    assert "full_qr / reduced_qr" in fig1.columns
+    assert "full_qr / reduced_qr (python)" in fig1.columns
+    assert fig1["ordering (python)"].str.contains("Fig. 1").all()
+    if _native.BUILT:
+        assert "svd native median [µs]" in fig1.columns
+        assert "svd / reduced_qr (native)" in fig1.columns
     missing = [t for t in build_tables(smoke) if t.frame is None]
     assert all(t.missing for t in missing)
     assert "*No results yet.*" in text or not missing

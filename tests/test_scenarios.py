@@ -178,8 +178,9 @@ def test_impl_choices_are_named(tmp_path: Path) -> None:
         f"{BASE}: controllers.qp_wbc.impl: invalid value 'fast'; valid choices: 'native' or "
         "'python'"
     )
-    assert error_of(BASE, ("controllers.kin_hqp.impl=native",)) == (
-        f"{BASE}: controllers.kin_hqp.impl: invalid value 'native'; valid choices: 'python'"
+    assert error_of(BASE, ("controllers.kin_hqp.impl=fast",)) == (
+        f"{BASE}: controllers.kin_hqp.impl: invalid value 'fast'; valid choices: 'native' or "
+        "'python'"
     )
 
 

@@ -192,6 +192,11 @@ class HlsScalingSpec(Strict):
 
     sizes: list[int] = [10, 20, 40, 60, 80, 100]
     repeats: int = Field(50, ge=1)
+    impls: list[Literal["native", "python"]] = Field(
+        ["native", "python"],
+        min_length=1,
+        description="the C++ mirror (timed inside the module) and the Python reference",
+    )
 
 
 class SweepSpec(Strict):

@@ -287,49 +287,47 @@ def dump_problems(
 
 
 def run_hls_scaling(spec: HlsScalingSpec, store: Any, version: str) -> None:
-    """Time reduced QR vs full-size QR vs SVD hierarchies against N; one row per algorithm."""
+    """Time reduced QR vs full-size QR vs SVD hierarchies against N; one row per algorithm and
+    impl (``impl`` column; a native row is ``skipped`` where the module is not built)."""
     import hashlib
 
+    from wbcbench import _native
     from wbcbench.qp.hls_baselines import ALGORITHMS, scaling_series
 
     settings = {"kind": "hls_scaling", "sizes": spec.sizes, "repeats": spec.repeats}
     done = store.done_run_ids()
-    rows_by_algorithm: dict[str, list[dict[str, Any]]] | None = None
-    wall = 0.0
-    for algorithm in ALGORITHMS:
-        key = json.dumps([HLS_SCENARIO, algorithm, settings, version], sort_keys=True)
-        rid = hashlib.sha256(key.encode()).hexdigest()[:16]
-        if rid in done:
-            continue
-        if rows_by_algorithm is None:  # one interleaved series for all algorithms
-            t0 = time.perf_counter()
-            series = scaling_series(spec.sizes, repeats=spec.repeats)
-            wall = time.perf_counter() - t0
-            rows_by_algorithm = {}
-            for r in series:
-                rows_by_algorithm.setdefault(r["algorithm"], []).append(r)
+    todo: list[tuple[str, str, str]] = []  # (algorithm, impl, run id)
+    for wanted in spec.impls:
+        for algorithm in ALGORITHMS:
+            key = json.dumps([HLS_SCENARIO, algorithm, wanted, settings, version], sort_keys=True)
+            rid = hashlib.sha256(key.encode()).hexdigest()[:16]
+            if rid not in done:
+                todo.append((algorithm, wanted, rid))
+    if not todo:
+        return
+    runnable = sorted({impl for _, impl, _ in todo if impl == "python" or _native.BUILT})
+    # one interleaved series for every algorithm and impl
+    t0 = time.perf_counter()
+    series = scaling_series(spec.sizes, repeats=spec.repeats, impls=runnable) if runnable else []
+    wall = time.perf_counter() - t0
+    for algorithm, impl, rid in todo:
         base = dict(scenario=HLS_SCENARIO, controller=algorithm, solver="-")
         metrics = []
-        for r in rows_by_algorithm.get(algorithm, []):
+        for r in series:
+            if (r["algorithm"], r["impl"]) != (algorithm, impl):
+                continue
             task = f"N={r['N']}"
-            for name, value in (
-                ("t_solve_median_us", 1e6 * r["median_s"]),
-                ("t_solve_p25_us", 1e6 * r["p25_s"]),
-                ("t_solve_p75_us", 1e6 * r["p75_s"]),
+            for name, value, unit in (
+                ("t_solve_median_us", 1e6 * r["median_s"], "us"),
+                ("t_solve_p25_us", 1e6 * r["p25_s"], "us"),
+                ("t_solve_p75_us", 1e6 * r["p75_s"], "us"),
+                ("t_call_median_us", 1e6 * r["call_median_s"], "us"),
+                ("max_abs_diff", r["max_abs_diff"], "-"),
             ):
                 metrics.append(
-                    dict(run_id=rid, **base, task=task, metric=name, value=value, unit="us")
+                    dict(run_id=rid, **base, task=task, metric=name, value=value, unit=unit)
                 )
-            metrics.append(
-                dict(
-                    run_id=rid,
-                    **base,
-                    task=task,
-                    metric="max_abs_diff",
-                    value=r["max_abs_diff"],
-                    unit="-",
-                )
-            )
+        ok = impl in runnable
         row = dict(
             run_id=rid,
             scenario=HLS_SCENARIO,
@@ -340,10 +338,11 @@ def run_hls_scaling(spec: HlsScalingSpec, store: Any, version: str) -> None:
             solver="-",
             tier="-",
             mode="-",
+            impl=impl,
             seed=0,
-            status="ok",
+            status="ok" if ok else "skipped",
             fell=False,
-            message="",
+            message="" if ok else f"native module {_native.REASON}",
             ticks=0,
             wall_time_s=round(wall, 3),
             failures=0,

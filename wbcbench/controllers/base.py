@@ -43,14 +43,19 @@ class ControllerConfig(BaseModel):
         return []
 
 
-class NativeConfig(ControllerConfig):
-    """Settings of a controller that also has a native tick."""
+class NativeImplConfig(ControllerConfig):
+    """Settings of a controller that also has a native implementation."""
 
     impl: Literal["native", "python"] | None = Field(  # type: ignore[assignment]
         None,
         description="native (the C++ tick) or python (the reference); by default native "
         "where the module is built",
     )
+
+
+class NativeConfig(NativeImplConfig):
+    """Settings of a controller that also has a native tick whose QPs go to a QP backend."""
+
     solver_calls: Literal["native", "python"] = Field(
         "native",
         description="impl native: call the QP backend from C++ where the module links its "
@@ -234,7 +239,7 @@ class Controller(ABC):
     kind: ClassVar[str] = "torque"
     #: backends the formulation is validated with (the registry sweep requires them to succeed)
     reference_solvers: ClassVar[tuple[str, ...]] = ("proxqp", "daqp")
-    #: the controller has a native tick (``impl: native``; its Config is a NativeConfig)
+    #: the controller has a native tick (``impl: native``; its Config is a NativeImplConfig)
     has_native: ClassVar[bool] = False
 
     @classmethod

@@ -27,12 +27,17 @@ with ``‖ẋ_d + λ e‖`` optionally capped per task (``speed_limits``; the pa
 ``hierarchy: svd | full_qr`` runs the paper's baselines (Fig. 1) in closed loop; they take
 equality levels only, so they need ``inequalities: false``.
 
+``impl: native`` solves the hierarchy with the C++ mirror of the three algorithms
+(:mod:`wbcbench.qp.hls_native`); the levels are built here, in Python, by either impl, and copied
+into the native solver once per tick.
+
 A velocity-level controller computes no torque, acceleration or wrench: ``ControlOutput.tau``,
 ``qdd`` and ``wrench`` are zero-size arrays and ``qd`` holds the command.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import ClassVar, Literal
 
@@ -47,12 +52,14 @@ from wbcbench.controllers.base import (
     ControllerConfig,
     ControllerContext,
     ControlOutput,
+    NativeImplConfig,
     StageTimer,
 )
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import SolverError, UnknownNameError, WbcBenchError
-from wbcbench.qp.hls import HlsResult, Level, solve_hls
-from wbcbench.qp.hls_baselines import solve_fullqr_hierarchy, solve_svd_hierarchy
+from wbcbench.qp.hls import HlsResult, Level
+from wbcbench.qp.hls_baselines import get_algorithm
+from wbcbench.qp.hls_native import NativeHls
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.schema import Scenario
 from wbcbench.tasks.collision import Box, CollisionModel, CollisionTerms, robot_capsules
@@ -119,7 +126,7 @@ class GazeSpec(BaseModel):
     speed_limit: float | None = Field(None, gt=0, description="cap on ‖λ (v × p)‖ [m/s]")
 
 
-class KinHqpConfig(ControllerConfig):
+class KinHqpConfig(NativeImplConfig):
     """Settings of the prioritized kinematic controller (defaults: the paper's values)."""
 
     hierarchy: Literal["rqr", "svd", "full_qr"] = Field(
@@ -290,6 +297,7 @@ class KinHqp(Controller):
     name = "kin_hqp"
     summary = "prioritized kinematic control (RQR-HQP): velocity-level HLS, inequalities"
     kind = "velocity"
+    has_native = True
     Config = KinHqpConfig
     config: KinHqpConfig
 
@@ -331,11 +339,10 @@ class KinHqp(Controller):
         self.collision = CollisionModel(robot, self._pairs)
         self._com0 = np.zeros(2)
         self._polygon: tuple[Array, Array] | None = None
-        self._solve = {
-            "rqr": solve_hls,
-            "svd": solve_svd_hierarchy,
-            "full_qr": solve_fullqr_hierarchy,
-        }[cfg.hierarchy]
+        #: the algorithm's name in ``hls_baselines.ALGORITHMS``
+        self.algorithm = "reduced_qr" if cfg.hierarchy == "rqr" else cfg.hierarchy
+        self._solve = get_algorithm(self.algorithm)
+        self._native: NativeHls | None = NativeHls() if self.impl == "native" else None
 
     # -- environment and start --------------------------------------------------------------
 
@@ -457,7 +464,10 @@ class KinHqp(Controller):
     # -- the step ---------------------------------------------------------------------------
 
     def solve(self, problem: KinematicProblem) -> HlsResult:
-        """Solve the hierarchy with the configured algorithm (raises SolverError)."""
+        """Solve the hierarchy with the configured algorithm and impl (raises SolverError)."""
+        if self._native is not None:
+            self._native.load(problem.levels)
+            return self._native.solve(self.algorithm)
         return self._solve(problem.levels)
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
@@ -471,6 +481,7 @@ class KinHqp(Controller):
         }
         if problem.collisions.d.size:
             diag["min_distance"] = problem.collisions.min_distance
+        t0 = time.perf_counter()
         try:
             res = self.solve(problem)
         except SolverError as exc:
@@ -485,8 +496,12 @@ class KinHqp(Controller):
                 message=f"kin_hqp: {exc}",
                 diagnostics=diag,
             )
-        timer.solve += res.time
+        # solve: the whole call (for the native impl, copying the levels in and the result
+        # out); solve_internal: the algorithm itself, timed inside the module when native
+        timer.solve += time.perf_counter() - t0
         timer.solve_internal += res.time
+        if self._native is not None:
+            timer.solve_native += res.time
         iterations = 0
         for lv in res.levels:
             timer.levels[f"solve.{lv.name}"] = lv.time

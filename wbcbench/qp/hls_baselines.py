@@ -11,7 +11,7 @@ Two references the RQR-HQP paper compares its reduced QR method against (§II-D,
 
 Both return the same minimum-norm hierarchical solution as ``solve_hls`` (undamped, or damped
 with the same ``k``), with the same result type. ``scaling_series`` times the three against the
-problem size N.
+problem size N, in Python and natively (:mod:`wbcbench.qp.hls_native`).
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from wbcbench.errors import UnknownNameError, WbcBenchError
+from wbcbench import _native
+from wbcbench.errors import SolverError, UnknownNameError, WbcBenchError
 from wbcbench.qp.hls import (
     Array,
     HlsResult,
@@ -37,7 +38,7 @@ from wbcbench.qp.hls import (
 )
 
 
-def _equality_tasks(levels: Sequence[Level]) -> list[tuple[Array, Array]]:
+def equality_tasks(levels: Sequence[Level]) -> list[tuple[Array, Array]]:
     """(A, b) of every level; the baselines have no inequality handling."""
     tasks = []
     for i, lv in enumerate(levels):
@@ -87,7 +88,7 @@ def solve_svd_hierarchy(
         Solution and per-level statistics (no iterations or active sets).
     """
     t_start = time.perf_counter()
-    tasks, ks = _equality_tasks(levels), level_dampings(levels, damping)
+    tasks, ks = equality_tasks(levels), level_dampings(levels, damping)
     x = start_point(levels, x0)
     n = x.size
     P = np.eye(n)
@@ -132,7 +133,7 @@ def solve_fullqr_hierarchy(
         Solution and per-level statistics (no iterations or active sets).
     """
     t_start = time.perf_counter()
-    tasks, ks = _equality_tasks(levels), level_dampings(levels, damping)
+    tasks, ks = equality_tasks(levels), level_dampings(levels, damping)
     x = start_point(levels, x0)
     n = x.size
     stacked = np.zeros((0, n))
@@ -159,11 +160,26 @@ ALGORITHMS: dict[str, Solver] = {
 }
 
 
-def get_algorithm(name: str) -> Solver:
-    """Look up a hierarchy algorithm by name."""
+#: the implementations of the algorithms: the Python reference, the C++ mirror
+IMPLS = ("python", "native")
+
+
+def get_algorithm(name: str, impl: str = "python") -> Solver:
+    """Look up a hierarchy algorithm by name, in Python or natively."""
     if name not in ALGORITHMS:
         raise UnknownNameError("hierarchy algorithm", name, ALGORITHMS)
+    if impl not in IMPLS:
+        raise UnknownNameError("impl", impl, IMPLS)
+    if impl == "native":
+        from wbcbench.qp.hls_native import NATIVE_ALGORITHMS
+
+        return NATIVE_ALGORITHMS[name]
     return ALGORITHMS[name]
+
+
+def default_impls() -> tuple[str, ...]:
+    """Both impls where the native module is built, else the Python one."""
+    return IMPLS if _native.BUILT else ("python",)
 
 
 def fig1_stack(n: int, n_levels: int = 4, fill: float = 0.8, seed: int = 0) -> list[Level]:
@@ -189,10 +205,42 @@ def fig1_stack(n: int, n_levels: int = 4, fill: float = 0.8, seed: int = 0) -> l
     ]
 
 
-def _time_once(fn: Solver, levels: Sequence[Level]) -> tuple[float, Array]:
-    t0 = time.perf_counter()
-    x = fn(levels).x
-    return time.perf_counter() - t0, x
+Timed = Callable[[], tuple[float, float, Array]]
+
+
+def timed_call(name: str, impl: str, levels: Sequence[Level]) -> Timed:
+    """One timed solve of ``levels`` by algorithm ``name`` in ``impl``: ``(time, call, x)``.
+
+    Python: ``time`` and ``call`` are the wall time of the function call. Native: the stack is
+    copied into a native solver once, here; ``time`` is the solve measured inside the module and
+    ``call`` the wall time of the call from Python (the crossing included, not the conversion of
+    the result).
+    """
+    fn = get_algorithm(name, impl)
+    if impl == "python":
+
+        def call() -> tuple[float, float, Array]:
+            t0 = time.perf_counter()
+            x = fn(levels).x
+            dt = time.perf_counter() - t0
+            return dt, dt, x
+
+        return call
+    from wbcbench.qp.hls_native import NativeHls
+
+    solver = NativeHls()
+    solver.load(levels)
+    core = solver.solver
+
+    def call_native() -> tuple[float, float, Array]:
+        t0 = time.perf_counter()
+        ok = solver.run(name)
+        wall = time.perf_counter() - t0
+        if not ok:
+            raise SolverError(core.message)
+        return float(core.time), wall, np.array(core.x)
+
+    return call_native
 
 
 def scaling_series(
@@ -203,12 +251,14 @@ def scaling_series(
     fill: float = 0.8,
     seed: int = 0,
     algorithms: Sequence[str] = tuple(ALGORITHMS),
+    impls: Sequence[str] | None = None,
 ) -> list[dict[str, Any]]:
     """Median solve time of each algorithm against the problem size N (paper Fig. 1).
 
-    Protocol: one stack per N (``fig1_stack``), one discarded warm-up call per algorithm, then
-    ``repeats`` rounds that call every algorithm once in turn, so slow drifts of the machine
-    affect all of them alike.
+    Protocol: one stack per N (``fig1_stack``), one discarded warm-up call per algorithm and
+    impl, then ``repeats`` rounds that call every algorithm in every impl once in turn, so slow
+    drifts of the machine affect all of them alike. The native times are measured inside the
+    module (see :func:`timed_call`).
 
     Args:
         sizes: values of N.
@@ -217,33 +267,40 @@ def scaling_series(
         fill: fraction of the variables the stack constrains.
         seed: random seed of the stacks.
         algorithms: names from ``ALGORITHMS``.
+        impls: names from ``IMPLS``; default: :func:`default_impls`.
 
     Returns:
-        One row per (N, algorithm): ``N``, ``algorithm``, ``median_s``, ``p25_s``, ``p75_s``,
-        ``repeats``, ``max_abs_diff`` (largest deviation of x from the ``reduced_qr`` solution).
+        One row per (N, algorithm, impl): ``N``, ``algorithm``, ``impl``, ``median_s``,
+        ``p25_s``, ``p75_s``, ``call_median_s`` (the wall time of the call from Python),
+        ``repeats``, ``max_abs_diff`` (largest deviation of x from the Python ``reduced_qr``
+        solution).
     """
-    fns = {name: get_algorithm(name) for name in algorithms}
+    impls = tuple(impls) if impls is not None else default_impls()
+    keys = [(name, impl) for impl in impls for name in algorithms]
     rows: list[dict[str, Any]] = []
     for n in sizes:
         levels = fig1_stack(n, n_levels, fill, seed)
         ref = solve_hls(levels).x
-        xs = {name: fn(levels).x for name, fn in fns.items()}  # warm-up
-        times: dict[str, list[float]] = {name: [] for name in fns}
+        calls = {key: timed_call(*key, levels) for key in keys}
+        xs = {key: call()[2] for key, call in calls.items()}  # warm-up
+        times: dict[tuple[str, str], list[tuple[float, float]]] = {key: [] for key in keys}
         for _ in range(repeats):
-            for name, fn in fns.items():
-                dt, xs[name] = _time_once(fn, levels)
-                times[name].append(dt)
-        for name in fns:
-            t = np.asarray(times[name])
+            for key, call in calls.items():
+                dt, wall, xs[key] = call()
+                times[key].append((dt, wall))
+        for key in keys:
+            t = np.asarray(times[key])
             rows.append(
                 {
                     "N": int(n),
-                    "algorithm": name,
-                    "median_s": float(np.median(t)),
-                    "p25_s": float(np.percentile(t, 25)),
-                    "p75_s": float(np.percentile(t, 75)),
+                    "algorithm": key[0],
+                    "impl": key[1],
+                    "median_s": float(np.median(t[:, 0])),
+                    "p25_s": float(np.percentile(t[:, 0], 25)),
+                    "p75_s": float(np.percentile(t[:, 0], 75)),
+                    "call_median_s": float(np.median(t[:, 1])),
                     "repeats": int(repeats),
-                    "max_abs_diff": float(np.abs(xs[name] - ref).max()),
+                    "max_abs_diff": float(np.abs(xs[key] - ref).max()),
                 }
             )
     return rows

@@ -295,13 +295,17 @@ def hls_figure(res: Results, out: Path) -> list[Path]:
         return []
     f = table.frame
     fig, ax = plt.subplots(figsize=(5.5, 3.6))
+    colors: dict[str, str] = {}
     for col in [c for c in f.columns if c.endswith("median [µs]")]:
-        ax.plot(f["N"], f[col], "o-", label=col.split(" ")[0])
+        algo, impl = col.split(" ")[:2]
+        color = colors.setdefault(algo, f"C{len(colors)}")  # one colour per algorithm
+        style = "o-" if impl == "native" else "s--"
+        ax.plot(f["N"], f[col], style, color=color, label=f"{algo} ({impl})")
     ax.set_xlabel("problem size N [variables]")
     ax.set_ylabel("median time [µs]")
     ax.set_yscale("log")
     ax.grid(alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=7)
     ax.set_title("Hierarchy solve time vs N (RQR-HQP Fig. 1)", fontsize=10)
     return _save(fig, out, "rqr_fig1")
 

@@ -13,4 +13,5 @@ NB_MODULE(_core, m) {
   wbcbench::bind_solvers(m);
   wbcbench::bind_hierarchy(m);
   wbcbench::bind_rc_lqp(m);
+  wbcbench::bind_hls(m);
 }

@@ -18,5 +18,6 @@ void bind_osf(nb::module_& m);
 void bind_hierarchy(nb::module_& m);
 void bind_rc_lqp(nb::module_& m);
 void bind_solvers(nb::module_& m);
+void bind_hls(nb::module_& m);
 
 }  // namespace wbcbench
