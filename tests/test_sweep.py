@@ -489,7 +489,7 @@ def test_a_hung_solver_comparison_does_not_hang_the_sweep(
 ) -> None:
     import time
 
-    import wbcbench.report.solvers as solvers
+    import wbcbench.bench.solver_comparison as solvers
 
     monkeypatch.setattr(solvers, "run_solver_comparison", lambda *a, **k: time.sleep(600))
     text = (

@@ -332,8 +332,8 @@ def _cmd_solvers(args: argparse.Namespace) -> int:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
+    from wbcbench.bench.solver_comparison import describe_problem, replay_problem
     from wbcbench.qp.settings import check_mode, check_tier
-    from wbcbench.report.solvers import describe_problem, replay_problem
 
     path = Path(args.problem)
     if not path.exists():

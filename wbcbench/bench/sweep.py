@@ -843,7 +843,7 @@ def run_sweep(
     if budget[0] <= 0 and max_jobs is not None:
         return report
     if plan.comparison is not None:
-        from wbcbench.report.solvers import run_solver_comparison
+        from wbcbench.bench.solver_comparison import run_solver_comparison
 
         comparison = (plan, store.folder, show_progress)
         _guarded(

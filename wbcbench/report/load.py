@@ -30,7 +30,7 @@ class Results:
     @cached_property
     def qp_solves(self) -> pd.DataFrame:
         """The solver comparison's rows (empty when the folder has none)."""
-        from wbcbench.report.solvers import SolveTable
+        from wbcbench.bench.solver_comparison import SolveTable
 
         return SolveTable(self.folder).read()
 

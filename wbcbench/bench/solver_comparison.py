@@ -1,0 +1,314 @@
+"""QP solver comparison on the WBC problems of every controller (qpbenchmark style): running it.
+
+The QPs of a few consecutive replayed control ticks of each scenario × controller are dumped
+with :meth:`Problem.save` (``problems/``), then every backend solves every problem under every
+accuracy tier and mode:
+
+* ``cold``: a fresh handle per problem;
+* ``warm`` / ``hot``: one handle per sequence of the same QP (same controller and QP index) over
+  consecutive ticks, so the second tick on starts from the first's solution or object.
+
+A named setting (``osqp_libdwbc``) runs at its own tier and mode only.
+
+Each solve is one row of ``qp_solves.csv`` (appended as it finishes; a rerun skips the rows it
+has): the reported status, whether the solution is *valid* — checked independently of the status
+with :func:`wbcbench.qp.validated` at the tier's tolerance scaled by the data's magnitude — the
+wall, set-up and solver-internal times, iterations, primal / dual residuals, duality gap and the
+distance to a high-accuracy reference solution. :mod:`wbcbench.report.solvers` reads the table.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import time
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from wbcbench.qp import Problem, Solution, check_solution, make_solver, validated
+from wbcbench.qp.settings import TIER_EPS
+
+SOLVES_CSV = "qp_solves.csv"
+SOLVE_COLUMNS = (
+    "key",
+    "problem",
+    "scenario",
+    "controller",
+    "qp",
+    "tick",
+    "n",
+    "n_eq",
+    "n_in",
+    "solver",
+    "tier",
+    "mode",
+    "status",
+    "reported_solved",
+    "valid",
+    "message",
+    "wall_us",
+    "setup_us",
+    "internal_us",
+    "internal_covers",
+    "iterations",
+    "primal_residual",
+    "dual_residual",
+    "duality_gap",
+    "dist_ref",
+    "reference_ok",
+    "rebuilt",
+    "code_version",
+)
+#: success tolerance of the ``default`` tier (each solver's own settings are not iso-accuracy)
+DEFAULT_TIER_EPS = 1e-6
+
+
+def tier_tolerance(tier: str, problem: Problem) -> float:
+    """Absolute tolerance of a tier, scaled by the magnitude of the problem's data."""
+    from wbcbench.bench.checks import data_scale
+
+    return TIER_EPS.get(tier, DEFAULT_TIER_EPS) * data_scale(problem)
+
+
+def problem_sequences(folder: str | Path) -> list[list[Path]]:
+    """Dumped problems grouped into sequences of the same QP over consecutive ticks."""
+    groups: dict[tuple[str, str], list[Path]] = {}
+    for path in sorted(Path(folder, "problems").glob("*/*/t*.npz")):
+        index = path.stem.split("-")[-1]
+        groups.setdefault((str(path.parent), index), []).append(path)
+    return [sorted(paths) for _, paths in sorted(groups.items())]
+
+
+def file_key(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+
+
+class SolveTable:
+    """The append-only ``qp_solves.csv`` of one results folder."""
+
+    def __init__(self, folder: str | Path) -> None:
+        self.path = Path(folder) / SOLVES_CSV
+
+    def done(self) -> set[str]:
+        if not self.path.exists():
+            return set()
+        return set(pd.read_csv(self.path, usecols=["key"])["key"])
+
+    def append(self, rows: Iterable[dict[str, Any]]) -> None:
+        new = not self.path.exists()
+        with self.path.open("a", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=SOLVE_COLUMNS, extrasaction="ignore")
+            if new:
+                writer.writeheader()
+            writer.writerows(rows)
+
+    def read(self) -> pd.DataFrame:
+        return pd.read_csv(self.path) if self.path.exists() else pd.DataFrame()
+
+
+def reference_solution(problem: Problem, solver: str) -> tuple[np.ndarray | None, bool]:
+    """A high-accuracy solution: ``solver`` at tier ``high``, else ProxQP; (x, valid)."""
+    for name in dict.fromkeys([solver, "proxqp", "clarabel"]):
+        try:
+            sol = make_solver(name, tier="high").solve(problem)
+        except Exception:  # a missing backend: try the next one
+            continue
+        if validated(problem, sol, tol=1e-6 * max(1.0, _scale(problem))).success:
+            return sol.x, True
+    return None, False
+
+
+def _scale(problem: Problem) -> float:
+    from wbcbench.bench.checks import data_scale
+
+    return data_scale(problem)
+
+
+def solve_row(problem: Problem, sol: Solution, tier: str, ref: np.ndarray | None) -> dict[str, Any]:
+    """One row's measures of a solution (validity independent of the reported status)."""
+    tol = tier_tolerance(tier, problem)
+    check = check_solution(problem, sol, tol=tol)
+    verdict = validated(problem, sol, tol=tol)
+    valid = verdict.success
+    message = verdict.message if sol.success and not valid else sol.message
+    if not sol.success:
+        message = f"{sol.status}: {sol.message}" if sol.message else str(sol.status)
+    return dict(
+        status=str(sol.status),
+        reported_solved=sol.success,
+        valid=valid,
+        message=message[:300],
+        wall_us=1e6 * sol.wall_time,
+        setup_us=1e6 * sol.setup_time,
+        internal_us=np.nan if sol.internal_time is None else 1e6 * sol.internal_time,
+        internal_covers=sol.internal_time_covers,
+        iterations=np.nan if sol.iterations is None else sol.iterations,
+        primal_residual=check.primal_residual,
+        dual_residual=np.nan if check.dual_residual is None else check.dual_residual,
+        duality_gap=np.nan if check.duality_gap is None else check.duality_gap,
+        dist_ref=np.nan if ref is None else check.distance_to(ref),
+        rebuilt=sol.rebuilt,
+    )
+
+
+def compare_on_problems(
+    folder: str | Path,
+    solvers: list[str],
+    tiers: list[str],
+    modes: list[str],
+    reference_solver: str = "clarabel",
+    max_solve_ms: float = 250.0,
+    skip: Iterable[Any] = (),
+    version: str = "",
+    show_progress: bool = True,
+) -> int:
+    """Solve every dumped problem with every solver × tier × mode the solver runs at (a named
+    setting runs at its own only); append rows; return count."""
+    from tqdm import tqdm
+
+    from wbcbench.qp import solver_class
+
+    table = SolveTable(folder)
+    done = table.done()
+    sequences = problem_sequences(folder)
+    loaded = {p: Problem.load(p) for seq in sequences for p in seq}
+    keys = {p: file_key(p) for p in loaded}
+    refs: dict[Path, tuple[np.ndarray | None, bool]] = {}
+    combos = [
+        (s, t, m) for s in solvers for t in tiers for m in modes if solver_class(s).offers(t, m)
+    ]
+    written = 0
+    skip_rules = list(skip)
+    with tqdm(total=len(combos), desc="solver comparison", disable=not show_progress) as bar:
+        for solver, tier, mode in combos:
+            bar.update()
+            rows: list[dict[str, Any]] = []
+            reason = next(
+                (
+                    r.reason
+                    for r in skip_rules
+                    if all(
+                        _match(v, pat)
+                        for v, pat in ((solver, r.solver), (mode, r.mode), (tier, r.tier))
+                    )
+                ),
+                "",
+            )
+            too_slow = ""
+            for seq in sequences:
+                handle = None
+                for path in seq:
+                    problem = loaded[path]
+                    key = f"{keys[path]}:{solver}:{tier}:{mode}:{version.split('@', 1)[0]}"
+                    if key in done:
+                        handle = None  # a resumed sequence restarts its handle
+                        continue
+                    base = _base(path, problem, solver, tier, mode, key, version)
+                    if reason or too_slow:
+                        rows.append(
+                            {
+                                **base,
+                                "status": "skipped",
+                                "valid": False,
+                                "message": reason or too_slow,
+                            }
+                        )
+                        continue
+                    if handle is None or mode == "cold":
+                        handle = make_solver(solver, tier=tier, mode=mode)
+                    if path not in refs:
+                        refs[path] = reference_solution(problem, reference_solver)
+                    ref, ref_ok = refs[path]
+                    t0 = time.perf_counter()
+                    sol = handle.solve(problem)
+                    elapsed = time.perf_counter() - t0
+                    rows.append(
+                        {**base, **solve_row(problem, sol, tier, ref), "reference_ok": ref_ok}
+                    )
+                    if elapsed * 1e3 > max_solve_ms:
+                        too_slow = (
+                            f"one solve took {1e3 * elapsed:.0f} ms > max_solve_ms = "
+                            f"{max_solve_ms:g} ms; the rest of this solver × tier × mode skipped"
+                        )
+            table.append(rows)
+            written += len(rows)
+    return written
+
+
+def _match(value: str, pattern: str) -> bool:
+    import fnmatch
+
+    return fnmatch.fnmatchcase(value, pattern)
+
+
+def _base(
+    path: Path, problem: Problem, solver: str, tier: str, mode: str, key: str, version: str
+) -> dict[str, Any]:
+    meta = problem.meta
+    return dict(
+        key=key,
+        problem=str(Path(*path.parts[-3:])),
+        scenario=meta.get("scenario", path.parts[-3]),
+        controller=meta.get("controller", path.parts[-2]),
+        qp=problem.name or f"qp{meta.get('index', '')}",
+        tick=meta.get("tick", -1),
+        n=problem.n,
+        n_eq=problem.n_eq,
+        n_in=problem.n_in,
+        solver=solver,
+        tier=tier,
+        mode=mode,
+        code_version=version,
+    )
+
+
+def run_solver_comparison(plan: Any, folder: str | Path, show_progress: bool = True) -> int:
+    """Dump the QPs of the plan's targets, then compare every solver on them."""
+    from wbcbench.bench.results import ResultsStore
+    from wbcbench.bench.runner import code_version
+    from wbcbench.bench.timing import dump_problems
+
+    spec = plan.comparison
+    for loaded, controller, options in plan.comparison_targets:
+        try:
+            dump_problems(folder, loaded, controller, options, spec.dump_after, spec.dump_ticks)
+        except Exception as exc:  # a controller that cannot replay: say so, go on
+            print(f"solver comparison: no QPs from {loaded.name} · {controller}: {exc}")
+    version = code_version(ResultsStore(folder))
+    return compare_on_problems(
+        folder,
+        plan.comparison_solvers,
+        list(spec.tiers),
+        list(spec.modes),
+        spec.reference_solver,
+        spec.max_solve_ms,
+        spec.skip,
+        version,
+        show_progress,
+    )
+
+
+def replay_problem(path: str | Path, solvers: list[str], tier: str, mode: str) -> pd.DataFrame:
+    """Solve one dumped QP with each solver; one row per solver (for ``wbcbench replay``)."""
+    problem = Problem.load(path)
+    ref, ref_ok = reference_solution(problem, "clarabel")
+    rows = []
+    for name in solvers:
+        sol = make_solver(name, tier=tier, mode=mode).solve(problem)
+        r = solve_row(problem, sol, tier, ref)
+        rows.append({"solver": name, **r, "reference_ok": ref_ok})
+    cols = ["solver", "status", "valid", "wall_us", "setup_us", "internal_us", "iterations"]
+    cols += ["primal_residual", "dual_residual", "duality_gap", "dist_ref", "message"]
+    return pd.DataFrame(rows)[cols]
+
+
+def describe_problem(path: str | Path) -> str:
+    p = Problem.load(path)
+    return f"{Path(path).name}: {p.name or 'QP'} n={p.n} n_eq={p.n_eq} n_in={p.n_in} " + json.dumps(
+        p.meta, sort_keys=True, default=str
+    )
