@@ -342,7 +342,7 @@ def test_to_osf_s2_recognises_the_identical_weighting_config(tmp_path: Path) -> 
 
 
 def test_timing_tables_never_mix_impls() -> None:
-    from wbcbench.report.tables import _config, _one_impl, impl_note
+    from wbcbench.report.tables.common import _config, _one_impl, impl_note
 
     runs = pd.DataFrame(
         {
