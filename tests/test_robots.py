@@ -333,6 +333,107 @@ def test_external_mjcf_servos_become_torque_motors(tmp_path: Path) -> None:
     assert r.has_frame("foot") and r.keyframe_names == ()
 
 
+_HOPPER_BODY = (
+    '<body name="base" pos="0 0 1"><freejoint name="root"/>'
+    '<inertial pos="0 0 0" mass="3" diaginertia="0.1 0.1 0.1"/>'
+    '<body name="leg" pos="0 0 -0.1"><joint name="hip" axis="0 1 0" range="-1 1"/>'
+    '<inertial pos="0 0 -0.2" mass="1" diaginertia="{inertia}"/>'
+    '<geom type="sphere" size="0.05"/></body></body>'
+)
+
+
+def _hopper_with_include(
+    folder: Path, compiler: str = "", inertia: str = "0.02 0.02 0.001"
+) -> Path:
+    (folder / "parts").mkdir(exist_ok=True)
+    (folder / "parts" / "body.xml").write_text(
+        f"<mujocoinclude>{_HOPPER_BODY.format(inertia=inertia)}</mujocoinclude>"
+    )
+    path = folder / "hopper.xml"
+    path.write_text(
+        f'<mujoco>{compiler}<worldbody><include file="parts/body.xml"/></worldbody>'
+        '<actuator><motor joint="hip"/></actuator></mujoco>'
+    )
+    return path
+
+
+def test_mjcf_include_is_inlined_for_pinocchio(tmp_path: Path) -> None:
+    r = load_robot(_hopper_with_include(tmp_path))
+    assert r.joint_names == ("hip",) and r.pin_model.nq == 8
+    assert r.notes == ("the file has no floor: a plane at z = 0 was added",)
+
+
+def test_mjcf_include_of_a_missing_file_names_it(tmp_path: Path) -> None:
+    path = _hopper_with_include(tmp_path)
+    (tmp_path / "parts" / "body.xml").unlink()
+    with pytest.raises(ModelError) as exc:
+        load_robot(path)
+    assert str(exc.value) == (
+        f"{path}: <include file='parts/body.xml'>: no such file {tmp_path}/parts/body.xml "
+        f"(include paths are relative to the main file's folder, {tmp_path})"
+    )
+
+
+def test_the_files_balanceinertia_is_kept(tmp_path: Path) -> None:
+    compiler = '<compiler balanceinertia="true"/>'
+    r = load_robot(_hopper_with_include(tmp_path, compiler, inertia="0.02 0.02 0.1"))
+    assert r.mj_model.body_inertia[2] == pytest.approx([0.14 / 3] * 3)
+
+
+def test_unbalanced_inertia_is_balanced_with_a_warning(tmp_path: Path) -> None:
+    path = _hopper_with_include(tmp_path, inertia="0.02 0.02 0.1")
+    with pytest.warns(UserWarning) as record:
+        r = load_robot(path)
+    assert str(record[0].message) == (
+        f"{path}: body 'leg': its inertia breaks A + B >= C, which MuJoCo cannot simulate; "
+        "MuJoCo balances it, Pinocchio keeps the file's, so the simulated and the controllers' "
+        "models differ there; fix that <inertial>, or state balanceinertia in the file's "
+        "<compiler>"
+    )
+    assert r.pin_model.inertias[2].inertia[2, 2] == pytest.approx(0.1)
+
+
+def test_urdf_package_paths(tmp_path: Path) -> None:
+    mesh = tmp_path / "pkgs" / "bot" / "meshes" / "m.stl"
+    mesh.parent.mkdir(parents=True)
+    mesh.write_text(
+        "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+        "endloop\nendfacet\nendsolid t\n"
+    )
+    urdf = (
+        '<robot name="bot"><link name="base"><inertial><mass value="1"/>'
+        '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'
+        '<visual><geometry><mesh filename="{uri}"/></geometry></visual></link>'
+        '<link name="arm"><inertial><mass value="1"/>'
+        '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+        '<joint name="j" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="5" velocity="1"/></joint></robot>'
+    )
+    for i, uri in enumerate(("package://bot/meshes/m.stl", f"package://{mesh}")):
+        path = tmp_path / f"bot{i}.urdf"
+        path.write_text(urdf.format(uri=uri))
+        assert load_robot(path, package_dirs=[tmp_path / "pkgs"]).joint_names == ("j",)
+    path = tmp_path / "bot.urdf"
+    path.write_text(urdf.format(uri="package:///nowhere/m.stl"))
+    with pytest.raises(ModelError) as exc:
+        load_robot(path)
+    assert str(exc.value) == (
+        f"{path}: <link name='base'> <visual> <mesh>: 'package:///nowhere/m.stl': "
+        "no such file /nowhere/m.stl"
+    )
+
+
+def test_a_file_that_is_no_robot_model(tmp_path: Path) -> None:
+    path = tmp_path / "scene.xml"
+    path.write_text("<scene/>")
+    with pytest.raises(ModelError) as exc:
+        load_robot(path)
+    assert str(exc.value) == (
+        f"{path}: the root element is <scene>; a robot model is a URDF (<robot>) or an MJCF "
+        "(<mujoco>) file"
+    )
+
+
 # ---------------------------------------------------------------------------------------------
 # Parametric arms (the DoF-scaled family varies these lists)
 

@@ -3,12 +3,17 @@
 ``load_robot("tocabi_like")`` loads a generated model; ``load_robot("path/to/robot.xml")`` or
 ``.urdf`` loads any humanoid with a free-floating base. Joints, frames and actuators are matched
 by NAME between the two libraries, never by position: URDF loaders order joints differently.
+Package paths, includes and mimic joints are resolved first (:mod:`wbcbench.robots.sources`); a
+model without a floor plane gets one.
 """
 
 from __future__ import annotations
 
 import copy
 import os
+import tempfile
+import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,6 +24,7 @@ import pinocchio as pin
 from wbcbench.errors import ModelError, UnknownNameError
 from wbcbench.robots.generator import MODELS_DIR
 from wbcbench.robots.library import SPECS
+from wbcbench.robots.sources import ModelSource, read_source, write_for_pinocchio
 from wbcbench.robots.spec import RobotInfo
 
 _MODEL_SUFFIXES = (".xml", ".mjcf", ".urdf")
@@ -55,6 +61,9 @@ class Robot:
         actuator_ids: MuJoCo actuator id driving each actuated joint, (k,).
         act_gear: that actuator's gear (torque = gear · ctrl), (k,).
         keyframe_names: MuJoCo keyframes, in file order.
+        mimic_joints: URDF mimic joints, held fixed at their offset (name → master joint).
+        notes: what loading changed in the file's model, one sentence each (``validate`` prints
+            them).
     """
 
     name: str
@@ -76,6 +85,8 @@ class Robot:
     act_gear: np.ndarray
     keyframe_names: tuple[str, ...]
     _frames: dict[str, int] = field(repr=False)
+    mimic_joints: dict[str, str] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
 
     @property
     def k(self) -> int:
@@ -147,10 +158,16 @@ class Robot:
 # Loading
 
 
-def load_robot(name_or_path: str | os.PathLike[str], base_dir: Path | None = None) -> Robot:
+def load_robot(
+    name_or_path: str | os.PathLike[str],
+    base_dir: Path | None = None,
+    package_dirs: Sequence[str | os.PathLike[str]] = (),
+) -> Robot:
     """Load a generated robot by name, or any free-floating humanoid MJCF / URDF by path.
 
-    A relative path is resolved against ``base_dir`` (a scenario file's folder) when given.
+    A relative path is resolved against ``base_dir`` (a scenario file's folder) when given, and
+    so are the ``package_dirs`` that ``package://`` mesh paths are looked up in (before the
+    installed ``example-robot-data``, see :func:`wbcbench.robots.sources.default_package_dirs`).
     Loaded robots are cached by file and modification time: models are read-only after loading
     (simulations work on :meth:`Robot.fresh_mj_model` copies).
 
@@ -163,7 +180,7 @@ def load_robot(name_or_path: str | os.PathLike[str], base_dir: Path | None = Non
         path = MODELS_DIR / f"{text}.xml"
         if not path.is_file():
             raise ModelError(f"{path}: generated model missing; run `make models`")
-        return _cached_load(path, text, SPECS[text]().info)
+        return _cached_load(path, text, SPECS[text]().info, ())
     looks_like_path = (
         isinstance(name_or_path, os.PathLike)
         or text.lower().endswith(_MODEL_SUFFIXES)
@@ -179,35 +196,58 @@ def load_robot(name_or_path: str | os.PathLike[str], base_dir: Path | None = Non
         path = Path(base_dir) / path
     if not path.is_file():
         raise ModelError(f"{path}: no such robot model file")
-    return _cached_load(path, path.stem, None)
+    dirs = tuple(
+        Path(d).expanduser() if base_dir is None else Path(base_dir) / Path(d).expanduser()
+        for d in package_dirs
+    )
+    return _cached_load(path, path.stem, None, dirs)
 
 
-_CACHE: dict[tuple[str, float, str], Robot] = {}
+_CACHE: dict[tuple[str, float, str, tuple[Path, ...]], Robot] = {}
 
 
-def _cached_load(path: Path, name: str, info: RobotInfo | None) -> Robot:
-    key = (str(path.resolve()), path.stat().st_mtime, name)
+def _cached_load(
+    path: Path, name: str, info: RobotInfo | None, package_dirs: tuple[Path, ...]
+) -> Robot:
+    key = (str(path.resolve()), path.stat().st_mtime, name, package_dirs)
     robot = _CACHE.get(key)
     if robot is None:
-        robot = _load(path, name, info if info is not None else RobotInfo())
+        source = read_source(path, package_dirs)
+        robot = _load(source, name, info if info is not None else RobotInfo())
         _CACHE[key] = robot
     return robot
 
 
-def _load(path: Path, name: str, info: RobotInfo) -> Robot:
-    is_urdf = path.suffix.lower() == ".urdf"
-    try:
-        pin_model = (
-            pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
-            if is_urdf
-            else pin.buildModelFromMJCF(str(path))
-        )
-    except (RuntimeError, ValueError) as exc:
-        raise ModelError(f"{path}: Pinocchio cannot read it: {exc}") from exc
+def _load(source: ModelSource, name: str, info: RobotInfo) -> Robot:
+    path = source.path
+    pin_model = _pinocchio_model(source)
     _check_pinocchio(path, pin_model)
     joint_names = tuple(pin_model.names[i] for i in range(2, pin_model.njoints))
-    mj_model = _mujoco_model(path, is_urdf, pin_model, joint_names)
-    return _assemble(path, name, info, mj_model, pin_model, joint_names)
+    notes: list[str] = []
+    mj_model = _mujoco_model(source, pin_model, joint_names, notes)
+    robot = _assemble(path, name, info, mj_model, pin_model, joint_names)
+    if source.mimic_joints:
+        pairs = ", ".join(f"{j} (mimics {m})" for j, m in source.mimic_joints.items())
+        notes.insert(0, f"mimic joints held fixed at their offset: {pairs}")
+        object.__setattr__(robot, "mimic_joints", dict(source.mimic_joints))
+    object.__setattr__(robot, "notes", tuple(notes))
+    return robot
+
+
+def _pinocchio_model(source: ModelSource) -> pin.Model:
+    path = source.path
+    try:
+        if source.is_urdf:
+            return pin.buildModelFromXML(source.text, pin.JointModelFreeFlyer())
+        if "<include" not in path.read_text(encoding="utf-8", errors="replace"):
+            return pin.buildModelFromMJCF(str(path))
+        with tempfile.TemporaryDirectory(prefix="wbcbench-mjcf-") as folder:
+            return pin.buildModelFromMJCF(str(write_for_pinocchio(source, folder)))
+    except (RuntimeError, ValueError, IndexError, KeyError) as exc:
+        raise ModelError(
+            f"{path}: Pinocchio cannot read it: {type(exc).__name__}: {exc} (Pinocchio reads "
+            "bodies, joints and inertials; an element it does not know is the usual cause)"
+        ) from exc
 
 
 def _check_pinocchio(path: Path, model: pin.Model) -> None:
@@ -226,26 +266,62 @@ def _check_pinocchio(path: Path, model: pin.Model) -> None:
     model.jointPlacements[1] = pin.SE3.Identity()
 
 
-def _mujoco_model(
-    path: Path, is_urdf: bool, pin_model: pin.Model, joint_names: tuple[str, ...]
-) -> mujoco.MjModel:
+def _mujoco_spec(source: ModelSource) -> mujoco.MjSpec:
     try:
-        spec = mujoco.MjSpec.from_file(str(path))
+        if source.is_urdf:
+            return mujoco.MjSpec.from_string(source.text)
+        return mujoco.MjSpec.from_file(str(source.path))
     except Exception as exc:  # MuJoCo raises a bare ValueError/Exception on parse errors
-        raise ModelError(f"{path}: MuJoCo cannot read it: {exc}") from exc
+        raise ModelError(f"{source.path}: MuJoCo cannot read it: {exc}") from exc
+
+
+def _mujoco_model(
+    source: ModelSource, pin_model: pin.Model, joint_names: tuple[str, ...], notes: list[str]
+) -> mujoco.MjModel:
+    path = source.path
+    spec = _mujoco_spec(source)
     # Both libraries must see the file's inertials, not geom-derived ones, and the free joint
-    # at the body origin.
+    # at the body origin. The file's balanceinertia is kept: it is the file's statement.
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     spec.compiler.alignfree = False
-    spec.compiler.balanceinertia = False
-    if is_urdf:
+    if source.is_urdf:
         _urdf_to_floating(spec, pin_model, joint_names)
     elif not _plain_motors(spec, joint_names):
         _replace_actuators(spec, joint_names)
+    if _add_floor(spec):
+        notes.append("the file has no floor: a plane at z = 0 was added")
+    try:
+        return spec.compile()
+    except Exception as exc:
+        if "balanceinertia" not in str(exc) or source.sets_balanceinertia:
+            raise ModelError(f"{path}: MuJoCo cannot compile it: {exc}") from exc
+        where = next((line for line in str(exc).splitlines() if "Element name" in line), "")
+        body = where.split("'")[1] if where.count("'") >= 2 else "?"
+    # MuJoCo rejects inertias that break the triangle inequality (A + B ≥ C); the file does not
+    # say whether to balance them, so MuJoCo does and the simulation differs from the
+    # controllers' model there. The harness balances nothing on its own: Pinocchio keeps the
+    # file's inertias.
+    spec.compiler.balanceinertia = True
+    warnings.warn(
+        f"{path}: body {body!r}: its inertia breaks A + B >= C, which MuJoCo cannot simulate; "
+        "MuJoCo balances it, Pinocchio keeps the file's, so the simulated and the controllers' "
+        "models differ there; fix that <inertial>, or state balanceinertia in the file's "
+        "<compiler>",
+        stacklevel=2,
+    )
     try:
         return spec.compile()
     except Exception as exc:
         raise ModelError(f"{path}: MuJoCo cannot compile it: {exc}") from exc
+
+
+def _add_floor(spec: mujoco.MjSpec) -> bool:
+    """A floor plane at z = 0 when the world has none (URDFs never have one); whether added."""
+    for geom in spec.worldbody.geoms:
+        if geom.type == mujoco.mjtGeom.mjGEOM_PLANE:
+            return False
+    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05])
+    return True
 
 
 def _urdf_to_floating(spec: mujoco.MjSpec, pin_model: pin.Model, joints: tuple[str, ...]) -> None:
