@@ -26,6 +26,7 @@ from wbcbench.controllers.kin_hqp import KinHqp, KinHqpConfig
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp.hls_baselines import default_impls, scaling_series
 from wbcbench.robots.loader import load_robot
+from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import (
     build_contacts,
     build_tasks,
@@ -57,7 +58,7 @@ def controller(scenario: str, **overrides: Any) -> tuple[KinHqp, RobotState]:
     cfg = {**controller_settings(loaded, "kin_hqp"), **overrides}
     ctrl = KinHqp(ctx, KinHqpConfig.model_validate(cfg))
     ctrl.use_environment(scenario_obstacles(loaded))
-    q, v = robot.keyframe(spec.initial.keyframe)
+    q, v = initial_state(loaded, robot)
     state = RobotState(robot, q, v)
     ctrl.start(state)
     return ctrl, state

@@ -27,8 +27,9 @@ import numpy as np
 from wbcbench.controllers.base import Controller, ControlOutput
 from wbcbench.dynamics.state import RobotState
 from wbcbench.report.load import Results, load_results
-from wbcbench.robots.loader import Robot, load_robot
-from wbcbench.scenarios.load import LoadedScenario, load_scenario
+from wbcbench.robots.loader import Robot
+from wbcbench.scenarios.initial import initial_state
+from wbcbench.scenarios.load import LoadedScenario, load_scenario, load_scenario_robot
 
 __all__ = ["Results", "ScenarioController", "load_results", "make_controller"]
 
@@ -51,9 +52,8 @@ class ScenarioController:
         self.controller.start(RobotState(robot, *self.initial_state()))
 
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(q, v)`` of the scenario's initial keyframe (copies)."""
-        q, v = self.robot.keyframe(self.scenario.spec.initial.keyframe)
-        return q.copy(), v.copy()
+        """``(q, v)`` of the scenario's initial state (copies)."""
+        return initial_state(self.scenario, self.robot)
 
     def step(self, q: np.ndarray, v: np.ndarray, t: float) -> ControlOutput:
         """One control tick at state ``(q, v)`` and scenario time ``t`` [s]."""
@@ -103,7 +103,7 @@ def make_controller(
     from wbcbench.sim.setup import build_controller
 
     loaded = load_scenario(str(scenario), list(overrides or []))
-    robot = load_robot(loaded.spec.robot)
+    robot = load_scenario_robot(loaded)
     settings = RunSettings(
         controller=controller,
         solver=default_solver() if solver == "default" else solver,

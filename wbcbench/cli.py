@@ -80,12 +80,16 @@ def _load_checked(names: Sequence[str], overrides: Sequence[str] = ()) -> list:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from wbcbench.scenarios.load import load_scenario_robot
+
     for loaded in _load_checked(args.scenarios, args.set):
         spec = loaded.spec
         print(
             f"ok  {loaded.path}  ({spec.robot}, {len(spec.tasks)} tasks, "
             f"{len(spec.contacts)} contacts, {spec.duration:g} s, hash {loaded.hash})"
         )
+        for note in load_scenario_robot(loaded).notes:
+            print(f"    note: {note}")
     return 0
 
 

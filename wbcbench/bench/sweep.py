@@ -423,8 +423,11 @@ class _Scenarios:
         self._robots: dict[tuple[str, str], Any] = {}
 
     def get(self, name: str, overrides: tuple[str, ...], file: str, key: str) -> Any:
-        from wbcbench.robots.loader import load_robot
-        from wbcbench.scenarios.load import check_against_robot, load_scenario
+        from wbcbench.scenarios.load import (
+            check_against_robot,
+            load_scenario,
+            load_scenario_robot,
+        )
 
         k = (name, overrides)
         if k not in self._cache:
@@ -432,7 +435,7 @@ class _Scenarios:
                 loaded = load_scenario(name, list(overrides))
                 rkey = (loaded.spec.robot, str(loaded.path.parent))
                 if rkey not in self._robots:
-                    self._robots[rkey] = load_robot(loaded.spec.robot, base_dir=loaded.path.parent)
+                    self._robots[rkey] = load_scenario_robot(loaded)
                 check_against_robot(loaded, self._robots[rkey])
             except WbcBenchError as exc:
                 raise ScenarioError(file, key, f"scenario {name!r}: {exc}") from None

@@ -231,7 +231,35 @@ class SimSpec(Strict):
 
 
 class InitialSpec(Strict):
+    """Where a run starts: a keyframe, a joint map or an SRDF group state (one of the three).
+
+    With ``joints`` or ``srdf`` the free base is placed upright above the origin at the height
+    that puts the lowest contact frame on the floor; joints not named are at zero. ``settle``
+    holds that posture for a while before the run's time starts, so a model placed a little
+    above or into the floor comes to rest before the controller is judged.
+    """
+
     keyframe: str = "stand"
+    joints: dict[str, float] | None = Field(None, description="joint name → position [rad, m]")
+    srdf: str | None = Field(None, description="SRDF file, relative to the scenario's folder")
+    state: str | None = Field(None, description="a group_state of the SRDF")
+    settle: float = Field(0.0, ge=0, le=10, description="settling time before t = 0 [s]")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> InitialSpec:
+        given = [k for k in ("keyframe", "joints", "srdf") if k in self.model_fields_set]
+        if len(given) > 1:
+            raise ValueError(f"give one of keyframe, joints or srdf, not {' and '.join(given)}")
+        if (self.srdf is None) != (self.state is None):
+            raise ValueError("'srdf' and 'state' go together: {srdf: file, state: name}")
+        return self
+
+    @property
+    def source(self) -> str:
+        """``keyframe``, ``joints`` or ``srdf``."""
+        if self.joints is not None:
+            return "joints"
+        return "srdf" if self.srdf is not None else "keyframe"
 
 
 class MetricsSpec(Strict):
@@ -283,6 +311,11 @@ class Scenario(Strict):
         None, description="how lost details of the paper's set-up were reconstructed"
     )
     robot: str
+    package_dirs: list[str] = Field(
+        default_factory=list,
+        description="folders that hold the packages of the robot's package:// paths, relative "
+        "to the scenario's folder",
+    )
     kind: Literal["dynamic", "kinematic"] = Field(
         "dynamic",
         description="dynamic: torque controllers in MuJoCo; kinematic: velocity-level "

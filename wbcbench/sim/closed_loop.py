@@ -26,10 +26,12 @@ from wbcbench.controllers.base import ControlOutput
 from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.convert import mj_to_pin, torque_to_ctrl
-from wbcbench.robots.loader import Robot, load_robot
+from wbcbench.robots.loader import Robot
+from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import (
     LoadedScenario,
     check_against_robot,
+    load_scenario_robot,
     torque_limits,
 )
 from wbcbench.sim.setup import WrappingContext, build_controller
@@ -259,11 +261,11 @@ def run_closed_loop(
             check=check,
         )
     spec = loaded.spec
-    robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
+    robot = robot if robot is not None else load_scenario_robot(loaded)
     check_against_robot(loaded, robot)
     model = prepare_model(robot, loaded)
     data = mujoco.MjData(model)
-    q0, v0 = robot.keyframe(spec.initial.keyframe)
+    q0, v0 = initial_state(loaded, robot)
     qpos, qvel = robot.pin_to_mj(q0, v0)
     data.qpos[:] = qpos
     data.qvel[:] = qvel
@@ -272,6 +274,8 @@ def run_closed_loop(
     controller = build_checked_controller(loaded, settings, robot, wrap_solver)
     contacts = controller.ctx.contacts
     tau_max = controller.ctx.tau_max
+    if spec.initial.settle > 0:
+        settle(robot, model, data, q0, tau_max, spec.initial.settle)
     frames = [c.frame for c in contacts]
     sensor = ContactSensor(model, robot, frames)
     substeps = max(1, round(spec.dt / model.opt.timestep))
@@ -364,6 +368,37 @@ def run_closed_loop(
         tau_max=tau_max,
         task_parts=task_parts,
     )
+
+
+def settle(
+    robot: Robot,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    q0: np.ndarray,
+    tau_max: np.ndarray,
+    duration: float,
+) -> None:
+    """Hold the joints at ``q0[7:]`` for ``duration`` [s] of physics before the run starts.
+
+    A joint PD servo (5 Hz, damping ratio 1, scaled by each joint's mass-matrix diagonal at the
+    initial posture) plus
+    MuJoCo's bias forces, within the torque limits: the same for every controller, so a posture
+    that starts a little above or in the floor comes to rest before any controller is judged.
+    """
+    dof = robot.mj_dof_adr
+    qadr = robot.mj_qpos_adr
+    omega = 2 * np.pi * 5.0
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, full)
+    inertia = np.diag(full)[dof]  # at the initial posture: the gains stay fixed
+    for _ in range(max(1, round(duration / model.opt.timestep))):
+        tau = data.qfrc_bias[dof] + inertia * (
+            omega**2 * (q0[7:] - data.qpos[qadr]) - 2 * omega * data.qvel[dof]
+        )
+        data.ctrl[:] = torque_to_ctrl(robot, np.clip(tau, -tau_max, tau_max))
+        mujoco.mj_step(model, data)
+    data.time = 0.0
+    mujoco.mj_forward(model, data)
 
 
 def _lost_contact(

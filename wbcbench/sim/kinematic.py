@@ -31,10 +31,12 @@ from wbcbench.controllers.base import ControlOutput
 from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import WbcBenchError
-from wbcbench.robots.loader import Robot, load_robot
+from wbcbench.robots.loader import Robot
+from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import (
     LoadedScenario,
     check_against_robot,
+    load_scenario_robot,
 )
 from wbcbench.sim.closed_loop import (
     Rejections,
@@ -73,7 +75,7 @@ def run_kinematic(
             torque controller, or a velocity controller on a dynamic scenario.
     """
     spec = loaded.spec
-    robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
+    robot = robot if robot is not None else load_scenario_robot(loaded)
     check_against_robot(loaded, robot)
     reason = controller_class(settings.controller).applies_to(spec)
     if reason:
@@ -82,7 +84,7 @@ def run_kinematic(
     contacts = controller.ctx.contacts
 
     model = robot.pin_model
-    q, _ = robot.keyframe(spec.initial.keyframe)
+    q, _ = initial_state(loaded, robot)
     v = np.zeros(robot.nv)
     frames = [c.frame for c in contacts]
     fids = [robot.frame_id(f) for f in frames]

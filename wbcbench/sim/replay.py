@@ -16,10 +16,8 @@ import numpy as np
 
 from wbcbench.controllers.base import ControlOutput
 from wbcbench.dynamics.state import RobotState
-from wbcbench.robots.loader import Robot, load_robot
-from wbcbench.scenarios.load import (
-    LoadedScenario,
-)
+from wbcbench.robots.loader import Robot
+from wbcbench.scenarios.load import LoadedScenario, load_scenario_robot
 from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
 from wbcbench.sim.setup import WrappingContext, build_controller
 
@@ -104,8 +102,7 @@ def replay(
     (timed) step and may return a failure message that marks the tick failed (e.g. an
     independent validity check); ``wrap_solver`` wraps every solver handle the controller makes.
     """
-    spec = loaded.spec
-    robot = robot if robot is not None else load_robot(spec.robot, base_dir=loaded.path.parent)
+    robot = robot if robot is not None else load_scenario_robot(loaded)
     controller = build_controller(
         loaded,
         settings,

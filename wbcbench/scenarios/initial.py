@@ -1,0 +1,121 @@
+"""A scenario's initial state: a keyframe, a joint map or an SRDF group state.
+
+A keyframe is taken as the model file gives it. A joint map or an SRDF state sets the named joints
+(the others at zero), puts the free base upright above the origin and lifts it so that the lowest
+of the scenario's contact frames is on the floor (z = 0).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from wbcbench.errors import ScenarioError, UnknownNameError
+
+
+def srdf_states(file: str, key: str, path: Path) -> dict[str, dict[str, float]]:
+    """The ``group_state`` elements of an SRDF: state name → joint name → value.
+
+    Several groups may define one state name (TALOS: per-limb groups); their joints are merged.
+    """
+    if not path.is_file():
+        raise ScenarioError(file, key, f"no such SRDF file {path}")
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise ScenarioError(file, key, f"{path} is not valid XML: {exc}") from None
+    states: dict[str, dict[str, float]] = {}
+    for state in root.iter("group_state"):
+        joints = states.setdefault(state.get("name", ""), {})
+        for joint in state.iter("joint"):
+            try:
+                joints[joint.get("name", "")] = float(joint.get("value", "").split()[0])
+            except (ValueError, IndexError):
+                raise ScenarioError(
+                    file,
+                    key,
+                    f"{path}: <group_state name={state.get('name')!r}> <joint "
+                    f"name={joint.get('name')!r}>: value {joint.get('value')!r} is not a number",
+                ) from None
+    return states
+
+
+def initial_joints(loaded: Any, robot: Any) -> dict[str, float]:
+    """The joint positions the scenario's ``initial`` names, checked against the robot.
+
+    Raises:
+        ScenarioError: an unknown joint, SRDF state or keyframe, or a value out of range, at
+            the key ``initial.<…>`` with the valid choices.
+    """
+    spec, file = loaded.spec.initial, str(loaded.path)
+    if spec.source == "joints":
+        values = dict(spec.joints or {})
+        for name in values:
+            if name not in robot.joint_names:
+                raise ScenarioError(
+                    file,
+                    f"initial.joints.{name}",
+                    str(UnknownNameError("joint", name, robot.joint_names)),
+                )
+        prefix = "initial.joints"
+    else:
+        srdf = Path(spec.srdf)
+        path = srdf if srdf.is_absolute() else loaded.path.parent / srdf
+        states = srdf_states(file, "initial.srdf", path)
+        if spec.state not in states:
+            raise ScenarioError(
+                file, "initial.state", str(UnknownNameError(f"state of {path}", spec.state, states))
+            )
+        # an SRDF is written for the full robot; a reduced model lacks some of its joints
+        values = {j: v for j, v in states[spec.state].items() if j in robot.joint_names}
+        if not values:
+            raise ScenarioError(
+                file,
+                "initial.state",
+                f"{spec.state!r} of {path} sets none of the robot's joints "
+                f"({', '.join(sorted(states[spec.state])) or 'it names none'})",
+            )
+        prefix = f"initial.state ({spec.state} in {path.name})"
+    for name, value in values.items():
+        j = robot.joint_index(name)
+        lo, hi = robot.q_min[j], robot.q_max[j]
+        if not lo - 1e-9 <= value <= hi + 1e-9:
+            where = f"{prefix}.{name}" if spec.source == "joints" else prefix
+            raise ScenarioError(
+                file, where, f"{name} = {value:g} is outside the joint's range [{lo:g}, {hi:g}]"
+            )
+    return values
+
+
+def grounded_configuration(
+    robot: Any, joints: dict[str, float], contact_frames: list[str]
+) -> np.ndarray:
+    """q (nq,) with ``joints`` set (the rest at zero) and the base upright above the origin, at
+    the height that puts the lowest contact frame (the lowest body when none) at z = 0."""
+    q = pin.neutral(robot.pin_model)
+    q[:7] = [0, 0, 0, 0, 0, 0, 1]
+    for name, value in joints.items():
+        q[7 + robot.joint_index(name)] = value
+    data = robot.pin_model.createData()
+    pin.framesForwardKinematics(robot.pin_model, data, q)
+    if contact_frames:
+        heights = [data.oMf[robot.frame_id(f)].translation[2] for f in contact_frames]
+    else:
+        heights = [data.oMi[i].translation[2] for i in range(1, robot.pin_model.njoints)]
+    q[2] = -float(min(heights))
+    return q
+
+
+def initial_state(loaded: Any, robot: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(q (nq,), v (nv,))`` in Pinocchio's convention at the scenario's start (copies)."""
+    spec = loaded.spec
+    if spec.initial.source == "keyframe":
+        q, v = robot.keyframe(spec.initial.keyframe)
+        return q.copy(), v.copy()
+    joints = initial_joints(loaded, robot)
+    q = grounded_configuration(robot, joints, [c.frame for c in spec.contacts])
+    return q, np.zeros(robot.nv)
