@@ -6,7 +6,8 @@ applies them through the motors (zero-order hold) and advances the physics by
 ``control_period / sim.timestep`` steps.
 
 Solver failures: the documented fallback is to **hold the previous tick's torque** and count the
-failure; after ``sim.max_consecutive_failures`` failed ticks in a row the run stops with status
+failure; a step that commands a torque beyond its limit (by more than ``TORQUE_TOL`` of it) is a
+failed tick too, with the same fallback; after ``sim.max_consecutive_failures`` failed ticks in a row the run stops with status
 ``failed``. A run stops with status ``fell`` when the base drops below ``sim.fall_height`` of its
 initial height, or a held contact frame slips more than ``sim.contact_slip`` or carries no load
 for 50 ms.
@@ -38,6 +39,8 @@ from wbcbench.sim.setup import WrappingContext, build_controller
 
 STAGES = ("dynamics", "build", "solve", "solve_internal", "total")
 LOST_CONTACT_TICKS = 50
+#: a commanded torque beyond (1 + TORQUE_TOL) × its limit fails the tick (solver accuracy)
+TORQUE_TOL = 1e-3
 
 
 @dataclass
@@ -93,9 +96,24 @@ class RunResult:
         return self.status == "fell"
 
 
+def rigid_group(model: mujoco.MjModel, body: int) -> set[int]:
+    """The bodies welded to ``body``: up to its nearest ancestor with a joint, and every body
+    below that one reached without crossing a joint (fixed URDF links such as a sole link)."""
+    root = body
+    while model.body_jntnum[root] == 0 and model.body_parentid[root] != 0:
+        root = int(model.body_parentid[root])
+    group = {root}
+    for b in range(root + 1, model.nbody):
+        if model.body_jntnum[b] == 0 and int(model.body_parentid[b]) in group:
+            group.add(b)
+    return group
+
+
 class ContactSensor:
     """Contact wrenches MuJoCo applies on the bodies that carry the robot's contact frames.
 
+    A frame's body counts together with the bodies welded to it (:func:`rigid_group`), so a
+    contact frame on a link with no geometry of its own reads the forces on its foot.
     Returned per frame as [f; m] in the contact frame, moments about its origin, reaction on the
     robot (the same convention as the controllers' predicted wrench).
     """
@@ -104,16 +122,16 @@ class ContactSensor:
         self.model = model
         self.frames = frames
         self._site_or_body: list[tuple[str, int]] = []
-        self.bodies: list[int] = []
+        self.bodies: list[set[int]] = []
         for f in frames:
             sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f)
             if sid >= 0:
                 self._site_or_body.append(("site", sid))
-                self.bodies.append(int(model.site_bodyid[sid]))
+                body = int(model.site_bodyid[sid])
             else:
-                bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f)
-                self._site_or_body.append(("body", bid))
-                self.bodies.append(bid)
+                body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f)
+                self._site_or_body.append(("body", body))
+            self.bodies.append(rigid_group(model, body))
         self._f6 = np.zeros(6)
 
     def frame_pose(self, data: mujoco.MjData, i: int) -> tuple[np.ndarray, np.ndarray]:
@@ -132,14 +150,14 @@ class ContactSensor:
         for ci in range(data.ncon):
             con = data.contact[ci]
             b1, b2 = geom_body[con.geom1], geom_body[con.geom2]
-            for i, body in enumerate(self.bodies):
-                if body not in (b1, b2):
+            for i, group in enumerate(self.bodies):
+                if (b1 in group) == (b2 in group):  # neither, or a contact inside the group
                     continue
                 mujoco.mj_contactForce(self.model, data, ci, self._f6)
                 frame = con.frame.reshape(3, 3)  # rows: normal, tangent1, tangent2
                 force = frame.T @ self._f6[:3]  # on geom2, world axes
                 torque = frame.T @ self._f6[3:]
-                if body == b1:
+                if b1 in group:
                     force, torque = -force, -torque
                 p, R = poses[i]
                 moment = torque + np.cross(con.pos - p, force)
@@ -307,7 +325,8 @@ def run_closed_loop(
             rejected = rejected if out.ok else ""  # a failed step is a failed tick already
             if rejected:
                 rejections.add(t, rejected)
-            if out.ok and not rejected:
+            over = torque_excess(out.tau, tau_max, robot.joint_names) if out.ok else ""
+            if out.ok and not rejected and not over:
                 tau = out.tau
                 consecutive = 0
             else:
@@ -317,7 +336,7 @@ def run_closed_loop(
                 if consecutive >= spec.sim.max_consecutive_failures:
                     status, message = (
                         "failed",
-                        f"{consecutive} failed ticks in a row: {rejected or out.message}",
+                        f"{consecutive} failed ticks in a row: {rejected or over or out.message}",
                     )
             last_tau = tau
             applied = tau + friction_torque(robot, model, v[6:]) if compensate else tau
@@ -326,7 +345,7 @@ def run_closed_loop(
                 mujoco.mj_step(model, data)
 
             row = output_row(t, out, task_parts)
-            if rejected:
+            if rejected or over:
                 row["ok"] = 0.0
             for j, name in enumerate(robot.joint_names):
                 row[f"tau.{name}"] = tau[j]
@@ -368,6 +387,17 @@ def run_closed_loop(
         tau_max=tau_max,
         task_parts=task_parts,
     )
+
+
+def torque_excess(tau: np.ndarray, tau_max: np.ndarray, joints: tuple[str, ...]) -> str:
+    """Why commanded torques ``tau`` (k,) break the limits ``tau_max`` (k,) [N·m], or ""."""
+    if tau.size == 0:
+        return ""
+    excess = np.abs(tau) - tau_max * (1 + TORQUE_TOL)
+    j = int(np.argmax(excess))
+    if not excess[j] > 0:
+        return ""
+    return f"commanded torque {tau[j]:.4g} N·m on {joints[j]} beyond its limit {tau_max[j]:.4g} N·m"
 
 
 def settle(
