@@ -80,6 +80,42 @@ def test_solver_failures_hold_the_last_torque_and_are_counted(
     np.testing.assert_array_equal(tau[20:], np.repeat(tau[19:20], len(tau) - 20, axis=0))
 
 
+def test_a_torque_beyond_its_limit_fails_the_tick(monkeypatch: pytest.MonkeyPatch) -> None:
+    """After 20 good ticks the controller commands twice the knee's limit: a failed tick, as a
+    solver failure is (the last torque held), though the step reports success."""
+    from wbcbench.sim import closed_loop
+
+    loaded = load_scenario("tocabi_stand_sway", ("duration=0.2", "sim.max_consecutive_failures=15"))
+    real_build = closed_loop.build_checked_controller
+
+    def build(*args, **kwargs):
+        controller = real_build(*args, **kwargs)
+        real_step, calls = controller.step, {"n": 0}
+        knee = controller.ctx.robot.joint_index("L_Knee")
+
+        def step(state, t):
+            out = real_step(state, t)
+            calls["n"] += 1
+            if calls["n"] > 20:
+                out.tau[knee] = 2 * controller.ctx.tau_max[knee]
+            return out
+
+        controller.step = step
+        return controller
+
+    monkeypatch.setattr(closed_loop, "build_checked_controller", build)
+    result = run_closed_loop(loaded, RunSettings(solver="proxqp"))
+    assert result.status == "failed" and result.failures == 15
+    limit = result.tau_max[result.robot.joint_index("L_Knee")]
+    assert result.message == (
+        f"15 failed ticks in a row: commanded torque {2 * limit:.4g} N·m on L_Knee beyond its "
+        f"limit {limit:.4g} N·m"
+    )
+    log = result.log.arrays()
+    assert list(log["ok"][19:21]) == [1.0, 0.0]
+    assert np.all(np.abs(log["tau.L_Knee"]) <= limit)
+
+
 def test_run_command_writes_tables_and_resumes(tmp_path: Path, capsys) -> None:
     out = tmp_path / "res"
     args = [
