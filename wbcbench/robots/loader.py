@@ -397,6 +397,28 @@ def _replace_actuators(spec: mujoco.MjSpec, joints: tuple[str, ...]) -> None:
     _add_motors(spec, joints)
 
 
+def welded_bodies(model: mujoco.MjModel, body: int) -> set[int]:
+    """The bodies welded to ``body``: up to its nearest ancestor with a joint, and every body
+    below that one reached without crossing a joint (fixed URDF links such as a sole link)."""
+    root = body
+    while model.body_jntnum[root] == 0 and model.body_parentid[root] != 0:
+        root = int(model.body_parentid[root])
+    group = {root}
+    for b in range(root + 1, model.nbody):
+        if model.body_jntnum[b] == 0 and int(model.body_parentid[b]) in group:
+            group.add(b)
+    return group
+
+
+def frame_body(model: mujoco.MjModel, name: str) -> int:
+    """The MuJoCo body that carries frame ``name`` (a site's body, or the body itself); -1 when
+    the model has neither."""
+    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+    if sid >= 0:
+        return int(model.site_bodyid[sid])
+    return int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name))
+
+
 def _name2id(model: mujoco.MjModel, kind: mujoco.mjtObj, name: str, path: Path) -> int:
     idx = mujoco.mj_name2id(model, kind, name)
     if idx < 0:

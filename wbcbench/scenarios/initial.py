@@ -1,8 +1,9 @@
 """A scenario's initial state: a keyframe, a joint map or an SRDF group state.
 
 A keyframe is taken as the model file gives it. A joint map or an SRDF state sets the named joints
-(the others at zero), puts the free base upright above the origin and lifts it so that the lowest
-of the scenario's contact frames is on the floor (z = 0).
+(the others at zero) and puts the free base upright above the origin, at the height where the
+geometry of the scenario's contact frames touches the floor (the lowest geom of the bodies welded
+to each contact frame; the frames themselves at z = 0 when those bodies have no geometry).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 
@@ -107,7 +109,34 @@ def grounded_configuration(
     else:
         heights = [data.oMi[i].translation[2] for i in range(1, robot.pin_model.njoints)]
     q[2] = -float(min(heights))
+    if contact_frames:
+        q[2] -= floor_gap(robot, q, contact_frames)
     return q
+
+
+def floor_gap(robot: Any, q: np.ndarray, contact_frames: list[str]) -> float:
+    """Signed distance [m] from the floor planes to the nearest geom welded to a contact frame,
+    at configuration q (nq,); 0 when those bodies have no geometry or the world has no plane."""
+    from wbcbench.robots.loader import frame_body, welded_bodies
+
+    m = robot.mj_model
+    d = mujoco.MjData(m)
+    d.qpos[:], _ = robot.pin_to_mj(q)
+    mujoco.mj_forward(m, d)
+    bodies: set[int] = set()
+    for name in contact_frames:
+        body = frame_body(m, name)
+        if body > 0:
+            bodies |= welded_bodies(m, body)
+    floors = [
+        g
+        for g in range(m.ngeom)
+        if m.geom_bodyid[g] == 0 and m.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE
+    ]
+    feet = [g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in bodies]
+    if not floors or not feet:
+        return 0.0
+    return min(mujoco.mj_geomDistance(m, d, f, g, 1.0, None) for f in floors for g in feet)
 
 
 def initial_state(loaded: Any, robot: Any) -> tuple[np.ndarray, np.ndarray]:

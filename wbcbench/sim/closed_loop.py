@@ -7,10 +7,10 @@ applies them through the motors (zero-order hold) and advances the physics by
 
 Solver failures: the documented fallback is to **hold the previous tick's torque** and count the
 failure; a step that commands a torque beyond its limit (by more than ``TORQUE_TOL`` of it) is a
-failed tick too, with the same fallback; after ``sim.max_consecutive_failures`` failed ticks in a row the run stops with status
-``failed``. A run stops with status ``fell`` when the base drops below ``sim.fall_height`` of its
-initial height, or a held contact frame slips more than ``sim.contact_slip`` or carries no load
-for 50 ms.
+failed tick too, with the same fallback; after ``sim.max_consecutive_failures`` failed ticks in a
+row the run stops with status ``failed``. A run stops with status ``fell`` when the base drops
+below ``sim.fall_height`` of its initial height, or a held contact frame slips more than
+``sim.contact_slip`` or carries no load for 50 ms.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from wbcbench.controllers.base import ControlOutput
 from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.convert import mj_to_pin, torque_to_ctrl
-from wbcbench.robots.loader import Robot
+from wbcbench.robots.loader import Robot, welded_bodies
 from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import (
     LoadedScenario,
@@ -96,24 +96,12 @@ class RunResult:
         return self.status == "fell"
 
 
-def rigid_group(model: mujoco.MjModel, body: int) -> set[int]:
-    """The bodies welded to ``body``: up to its nearest ancestor with a joint, and every body
-    below that one reached without crossing a joint (fixed URDF links such as a sole link)."""
-    root = body
-    while model.body_jntnum[root] == 0 and model.body_parentid[root] != 0:
-        root = int(model.body_parentid[root])
-    group = {root}
-    for b in range(root + 1, model.nbody):
-        if model.body_jntnum[b] == 0 and int(model.body_parentid[b]) in group:
-            group.add(b)
-    return group
-
-
 class ContactSensor:
     """Contact wrenches MuJoCo applies on the bodies that carry the robot's contact frames.
 
-    A frame's body counts together with the bodies welded to it (:func:`rigid_group`), so a
-    contact frame on a link with no geometry of its own reads the forces on its foot.
+    A frame's body counts together with the bodies welded to it
+    (:func:`~wbcbench.robots.loader.welded_bodies`), so a contact frame on a link with no
+    geometry of its own reads the forces on its foot.
     Returned per frame as [f; m] in the contact frame, moments about its origin, reaction on the
     robot (the same convention as the controllers' predicted wrench).
     """
@@ -131,7 +119,7 @@ class ContactSensor:
             else:
                 body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f)
                 self._site_or_body.append(("body", body))
-            self.bodies.append(rigid_group(model, body))
+            self.bodies.append(welded_bodies(model, body))
         self._f6 = np.zeros(6)
 
     def frame_pose(self, data: mujoco.MjData, i: int) -> tuple[np.ndarray, np.ndarray]:
