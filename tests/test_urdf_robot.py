@@ -289,3 +289,22 @@ def test_srdf_state_sets_the_named_joints(tmp_path: Path) -> None:
     q, _ = initial_state(loaded, robot_model)
     assert q[7 + robot_model.joint_index("l_knee")] == 0.6
     assert q[7 + robot_model.joint_index("r_knee")] == 0.5
+
+
+def test_self_collisions_are_named_and_can_be_switched_off(tmp_path: Path) -> None:
+    from wbcbench.scenarios.initial import grounded_configuration, self_collisions
+    from wbcbench.sim.closed_loop import prepare_model
+
+    path = write_scenario(tmp_path, write_humanoid(tmp_path), "sim: {self_collision: false}\n")
+    loaded = load_scenario(path)
+    robot = load_scenario_robot(loaded)
+    assert self_collisions(robot, initial_state(loaded, robot)[0]) == []
+    crossed = grounded_configuration(robot, {"l_hip_roll": -0.17, "r_hip_roll": 0.17}, [])
+    overlaps = self_collisions(robot, crossed)
+    assert [(a, b) for a, b, _ in overlaps] == [("l_foot", "r_foot")] and overlaps[0][2] > 0
+    model = prepare_model(robot, loaded)
+    data = mujoco.MjData(model)
+    data.qpos[:], _ = robot.pin_to_mj(crossed)
+    mujoco.mj_forward(model, data)
+    bodies = {(model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]) for c in data.contact}
+    assert all(0 in pair for pair in bodies)

@@ -80,6 +80,7 @@ def _load_checked(names: Sequence[str], overrides: Sequence[str] = ()) -> list:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from wbcbench.scenarios.initial import initial_state, self_collisions
     from wbcbench.scenarios.load import load_scenario_robot
 
     for loaded in _load_checked(args.scenarios, args.set):
@@ -88,8 +89,17 @@ def _cmd_validate(args: argparse.Namespace) -> int:
             f"ok  {loaded.path}  ({spec.robot}, {len(spec.tasks)} tasks, "
             f"{len(spec.contacts)} contacts, {spec.duration:g} s, hash {loaded.hash})"
         )
-        for note in load_scenario_robot(loaded).notes:
+        robot = load_scenario_robot(loaded)
+        for note in robot.notes:
             print(f"    note: {note}")
+        overlaps = self_collisions(robot, initial_state(loaded, robot)[0])
+        if overlaps and spec.sim.self_collision:
+            pairs = ", ".join(f"{a}–{b} {1e3 * depth:.1f} mm" for a, b, depth in overlaps)
+            print(
+                f"    note: at the initial posture {len(overlaps)} pairs of the robot's bodies "
+                f"overlap ({pairs}); the simulation pushes them apart: set "
+                "'sim: {self_collision: false}' to simulate contacts with the world only"
+            )
     return 0
 
 

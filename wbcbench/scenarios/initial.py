@@ -114,6 +114,24 @@ def grounded_configuration(
     return q
 
 
+def self_collisions(robot: Any, q: np.ndarray) -> list[tuple[str, str, float]]:
+    """Pairs of the robot's bodies whose geoms overlap at configuration q (nq,): (body, body,
+    depth [m]), deepest first, one entry per pair."""
+    m = robot.mj_model
+    d = mujoco.MjData(m)
+    d.qpos[:], _ = robot.pin_to_mj(q)
+    mujoco.mj_forward(m, d)
+    deepest: dict[tuple[str, str], float] = {}
+    for i in range(d.ncon):
+        con = d.contact[i]
+        b1, b2 = int(m.geom_bodyid[con.geom1]), int(m.geom_bodyid[con.geom2])
+        if b1 == 0 or b2 == 0 or con.dist >= 0:
+            continue
+        pair = (m.body(b1).name, m.body(b2).name)
+        deepest[pair] = max(deepest.get(pair, 0.0), -float(con.dist))
+    return sorted(((a, b, depth) for (a, b), depth in deepest.items()), key=lambda x: -x[2])
+
+
 def floor_gap(robot: Any, q: np.ndarray, contact_frames: list[str]) -> float:
     """Signed distance [m] from the floor planes to the nearest geom welded to a contact frame,
     at configuration q (nq,); 0 when those bodies have no geometry or the world has no plane."""

@@ -39,6 +39,7 @@ _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("initial", "srdf"), None),
     (("initial", "state"), None),
     (("initial", "settle"), 0.0),
+    (("sim", "self_collision"), True),
 )
 
 

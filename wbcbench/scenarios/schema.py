@@ -228,6 +228,11 @@ class SimSpec(Strict):
     max_consecutive_failures: int = Field(
         20, ge=1, description="stop the run after this many failed control ticks in a row"
     )
+    self_collision: bool = Field(
+        True,
+        description="simulate contacts between the robot's own bodies (false: the robot's "
+        "geoms touch the world only)",
+    )
 
 
 class InitialSpec(Strict):

@@ -222,7 +222,23 @@ def prepare_model(robot: Robot, loaded: LoadedScenario) -> mujoco.MjModel:
     act = robot.actuator_ids
     model.actuator_ctrlrange[act, 0] = -tau
     model.actuator_ctrlrange[act, 1] = tau
+    if not sim.self_collision:
+        world_contacts_only(model)
     return model
+
+
+def world_contacts_only(model: mujoco.MjModel) -> None:
+    """Collision masks so that the robot's geoms collide with the world's and not each other.
+
+    A pair collides when ``contype_a & conaffinity_b`` or ``contype_b & conaffinity_a``: robot
+    geoms get (2, 1), world geoms (1, 2); geoms that collided with nothing stay so.
+    """
+    active = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    world = model.geom_bodyid == 0
+    model.geom_contype[active & ~world] = 2
+    model.geom_conaffinity[active & ~world] = 1
+    model.geom_contype[active & world] = 1
+    model.geom_conaffinity[active & world] = 2
 
 
 def friction_torque(robot: Robot, model: mujoco.MjModel, qd: np.ndarray) -> np.ndarray:
