@@ -368,6 +368,10 @@ def _check_consistency(file: str, spec: Scenario) -> None:
                 "metrics.window",
                 f"ends at {t1:g} s, after the duration of {spec.duration:g} s",
             )
+    if spec.kind == "kinematic" and spec.initial.settle > 0:
+        raise ScenarioError(
+            file, "initial.settle", "a kinematic scenario has no physics to settle; remove it"
+        )
     if spec.kind == "dynamic":
         steps = 1.0 / (spec.control_rate * spec.sim.timestep)
         if abs(steps - round(steps)) > 1e-6 * max(1.0, steps) or round(steps) < 1:

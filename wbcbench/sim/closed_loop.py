@@ -296,16 +296,12 @@ def run_closed_loop(
     controller = build_checked_controller(loaded, settings, robot, wrap_solver)
     contacts = controller.ctx.contacts
     tau_max = controller.ctx.tau_max
-    if spec.initial.settle > 0:
-        settle(robot, model, data, q0, tau_max, spec.initial.settle)
     frames = [c.frame for c in contacts]
     sensor = ContactSensor(model, robot, frames)
     substeps = max(1, round(spec.dt / model.opt.timestep))
     n_ticks = round(spec.duration * spec.control_rate)
-    base_z0 = float(data.qpos[2])
-    contact_p0 = [sensor.frame_pose(data, i)[0] for i in range(len(frames))]
-    unloaded = np.zeros(len(frames), dtype=int)
     pin_data = robot.pin_model.createData()
+    unloaded = np.zeros(len(frames), dtype=int)
     log = RunLog()
     task_parts: dict[str, list[str]] = {}
     last_tau = np.zeros(robot.k)
@@ -316,12 +312,19 @@ def run_closed_loop(
     wall0 = time.perf_counter()
     tick = 0
     try:
+        q, v = mj_to_pin(robot, data.qpos, data.qvel)
+        controller.start(RobotState(robot, q, v, pin_data))
+        if spec.initial.settle > 0:
+            ticks = round(spec.initial.settle * spec.control_rate)
+            last_tau = settle(
+                controller, robot, model, data, pin_data, tau_max, ticks, substeps, check
+            )
+        base_z0 = float(data.qpos[2])
+        contact_p0 = [sensor.frame_pose(data, i)[0] for i in range(len(frames))]
         for tick in range(n_ticks):
             t = tick * spec.dt
             q, v = mj_to_pin(robot, data.qpos, data.qvel)
             state = RobotState(robot, q, v, pin_data)
-            if tick == 0:
-                controller.start(state)
             out = controller.step(state, t)
             if on_step is not None:
                 on_step(state, out)
@@ -405,34 +408,33 @@ def torque_excess(tau: np.ndarray, tau_max: np.ndarray, joints: tuple[str, ...])
 
 
 def settle(
+    controller: Any,
     robot: Robot,
     model: mujoco.MjModel,
     data: mujoco.MjData,
-    q0: np.ndarray,
+    pin_data: Any,
     tau_max: np.ndarray,
-    duration: float,
-) -> None:
-    """Hold the joints at ``q0[7:]`` for ``duration`` [s] of physics before the run starts.
-
-    A joint PD servo (5 Hz, damping ratio 1, scaled by each joint's mass-matrix diagonal at the
-    initial posture) plus
-    MuJoCo's bias forces, within the torque limits: the same for every controller, so a posture
-    that starts a little above or in the floor comes to rest before any controller is judged.
-    """
-    dof = robot.mj_dof_adr
-    qadr = robot.mj_qpos_adr
-    omega = 2 * np.pi * 5.0
-    full = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, full)
-    inertia = np.diag(full)[dof]  # at the initial posture: the gains stay fixed
-    for _ in range(max(1, round(duration / model.opt.timestep))):
-        tau = data.qfrc_bias[dof] + inertia * (
-            omega**2 * (q0[7:] - data.qpos[qadr]) - 2 * omega * data.qvel[dof]
-        )
-        data.ctrl[:] = torque_to_ctrl(robot, np.clip(tau, -tau_max, tau_max))
-        mujoco.mj_step(model, data)
+    ticks: int,
+    substeps: int,
+    check: Callable[[ControlOutput], str] | None = None,
+) -> np.ndarray:
+    """``ticks`` control ticks of the run's own controller with time held at t = 0 (every
+    reference at its start), before the run's time starts: a robot placed a little above or
+    into the floor comes to rest before it is judged. Nothing is logged; a failed tick, one
+    beyond the torque limits or one ``check`` rejects holds the previous torque as in the run.
+    Returns the last torque applied (k,) [N·m]."""
+    tau = np.zeros(robot.k)
+    for _ in range(ticks):
+        q, v = mj_to_pin(robot, data.qpos, data.qvel)
+        out = controller.step(RobotState(robot, q, v, pin_data), 0.0)
+        rejected = check(out) if check is not None else ""  # also clears what the check holds
+        if out.ok and not rejected and not torque_excess(out.tau, tau_max, robot.joint_names):
+            tau = out.tau
+        data.ctrl[:] = torque_to_ctrl(robot, tau)
+        for _ in range(substeps):
+            mujoco.mj_step(model, data)
     data.time = 0.0
-    mujoco.mj_forward(model, data)
+    return tau
 
 
 def _lost_contact(
