@@ -268,9 +268,9 @@ def test_keyframe_in_pinocchio_convention() -> None:
 def test_unknown_robot_lists_choices() -> None:
     with pytest.raises(UnknownNameError) as exc:
         load_robot("nao")
+    valid = ", ".join(sorted([*available_robots(), "g1", "talos"]))
     assert str(exc.value) == (
-        f"unknown robot 'nao'; valid choices: {', '.join(available_robots())} "
-        "(or give a path to an MJCF/URDF file)"
+        f"unknown robot 'nao'; valid choices: {valid} (or give a path to an MJCF/URDF file)"
     )
 
 

@@ -34,7 +34,8 @@ def _cmd_list(args: argparse.Namespace) -> int:
     from wbcbench.controllers.registry import CONTROLLERS
     from wbcbench.qp import all_solvers
     from wbcbench.qp.hierarchy import STRATEGY_SUMMARY
-    from wbcbench.robots.loader import available_robots
+    from wbcbench.robots.loader import available_robots, third_party_robots
+    from wbcbench.robots.third_party import THIRD_PARTY
     from wbcbench.scenarios.load import available_scenarios
 
     print("controllers:")
@@ -55,6 +56,9 @@ def _cmd_list(args: argparse.Namespace) -> int:
     print("robots:")
     for name in available_robots():
         print(f"  {name}")
+    for name, missing in third_party_robots().items():
+        status = f"missing (pip install '{missing}')" if missing else "available"
+        print(f"  {name:<14} {status}  {THIRD_PARTY[name].summary}")
     print("scenarios:")
     for name in available_scenarios():
         print(f"  {name}")

@@ -284,6 +284,19 @@ def _is_glob(text: str) -> bool:
     return any(ch in text for ch in "*?[")
 
 
+def _installed(name: str) -> bool:
+    """Whether the robot of shipped scenario ``name`` can be loaded (a third-party robot's
+    distribution is installed); an unreadable file counts as installed, to fail later by name."""
+    from wbcbench.robots.loader import third_party_robots
+    from wbcbench.scenarios.load import SCENARIO_DIR, read_yaml_mapping
+
+    try:
+        robot = read_yaml_mapping(SCENARIO_DIR / f"{name}.yaml", "a scenario file").get("robot")
+    except WbcBenchError:
+        return True
+    return not (isinstance(robot, str) and third_party_robots().get(robot))
+
+
 def resolve_scenarios(patterns: Sequence[str], file: str, key: str) -> list[str]:
     """Scenario names or paths: globs over the scenarios/ folder, names, or file paths."""
     from wbcbench.scenarios.load import available_scenarios, resolve_scenario_path
@@ -291,7 +304,9 @@ def resolve_scenarios(patterns: Sequence[str], file: str, key: str) -> list[str]
     out: list[str] = []
     for i, pattern in enumerate(patterns):
         if _is_glob(pattern):
-            names = fnmatch.filter(available_scenarios(), pattern)
+            # a glob leaves out the shipped scenarios of third-party robots that are not
+            # installed (`wbcbench[robots]`); named explicitly, one is an error saying so
+            names = [n for n in fnmatch.filter(available_scenarios(), pattern) if _installed(n)]
             if not names:  # a file glob, e.g. my_scenarios/*.yaml
                 names = sorted(str(p) for p in Path().glob(pattern) if p.suffix == ".yaml")
             out += [n for n in names if n not in out]
@@ -487,11 +502,11 @@ def _check_config_keys(matrix: MatrixSpec, file: str, key: str) -> None:
 
 def _robot_overrides(matrix: MatrixSpec, file: str, key: str) -> list[tuple[str, ...]]:
     """One ``robot=<name>`` override per entry of ``robots`` (checked); ``[()]`` when empty."""
-    from wbcbench.robots.loader import available_robots
+    from wbcbench.robots.loader import available_robots, third_party_robots
 
     if not matrix.robots:
         return [()]
-    valid = available_robots()
+    valid = [*available_robots(), *third_party_robots()]
     for i, name in enumerate(matrix.robots):
         if name not in valid:
             raise ScenarioError(

@@ -24,8 +24,15 @@ import pinocchio as pin
 from wbcbench.errors import ModelError, UnknownNameError
 from wbcbench.robots.generator import MODELS_DIR
 from wbcbench.robots.library import SPECS
-from wbcbench.robots.sources import ModelSource, read_source, write_for_pinocchio
+from wbcbench.robots.sources import (
+    ModelSource,
+    default_package_dirs,
+    read_source,
+    resolve_package_path,
+    write_for_pinocchio,
+)
 from wbcbench.robots.spec import RobotInfo
+from wbcbench.robots.third_party import THIRD_PARTY
 
 _MODEL_SUFFIXES = (".xml", ".mjcf", ".urdf")
 
@@ -33,6 +40,20 @@ _MODEL_SUFFIXES = (".xml", ".mjcf", ".urdf")
 def available_robots() -> list[str]:
     """Names of the generated robots that ``load_robot`` accepts (sorted)."""
     return sorted(SPECS)
+
+
+def third_party_robots() -> dict[str, str]:
+    """Names of the third-party robots ``load_robot`` accepts → the distribution that ships
+    each, or "" when it is installed."""
+    dirs = default_package_dirs()
+    out = {}
+    for name, entry in sorted(THIRD_PARTY.items()):
+        try:
+            resolve_package_path(entry.uri, dirs, Path(name), "robot")
+            out[name] = ""
+        except ModelError:
+            out[name] = entry.distribution
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,6 +202,17 @@ def load_robot(
         if not path.is_file():
             raise ModelError(f"{path}: generated model missing; run `make models`")
         return _cached_load(path, text, SPECS[text]().info, ())
+    if text in THIRD_PARTY:
+        entry = THIRD_PARTY[text]
+        shares = tuple(default_package_dirs())
+        try:
+            path = resolve_package_path(entry.uri, shares, Path(text), "robot")
+        except ModelError:
+            raise ModelError(
+                f"robot {text!r} is a model of {entry.distribution}, which is not installed: "
+                f"pip install '{entry.distribution}' (or 'wbcbench[robots]')"
+            ) from None
+        return _cached_load(path, text, entry.info, shares)
     looks_like_path = (
         isinstance(name_or_path, os.PathLike)
         or text.lower().endswith(_MODEL_SUFFIXES)
@@ -189,7 +221,10 @@ def load_robot(
     )
     if not looks_like_path:
         raise UnknownNameError(
-            "robot", text, available_robots(), hint="or give a path to an MJCF/URDF file"
+            "robot",
+            text,
+            [*available_robots(), *THIRD_PARTY],
+            hint="or give a path to an MJCF/URDF file",
         )
     path = Path(text).expanduser()
     if not path.is_absolute() and base_dir is not None and not path.is_file():

@@ -102,10 +102,11 @@ def resolve_package_path(uri: str, package_dirs: Sequence[Path], file: Path, ele
             return target
         raise ModelError(f"{file}: {element}: {uri!r}: no such file {target}")
     package, _, inner = rest.partition("/")
-    for folder in package_dirs:
-        for candidate in (Path(folder) / package / inner, Path(folder) / inner):
-            if candidate == Path(folder) / inner and Path(folder).name != package:
-                continue
+    for folder in map(Path, package_dirs):
+        candidates = [folder / package / inner]
+        if folder.name == package:
+            candidates.append(folder / inner)
+        for candidate in candidates:
             if candidate.is_file():
                 return candidate
     searched = ", ".join(str(d) for d in package_dirs) or "(none)"

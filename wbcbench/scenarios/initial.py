@@ -46,6 +46,26 @@ def srdf_states(file: str, key: str, path: Path) -> dict[str, dict[str, float]]:
     return states
 
 
+def srdf_path(loaded: Any) -> Path:
+    """The scenario's ``initial.srdf``: a path relative to the scenario's folder, or a
+    ``package://`` path resolved like the robot's mesh paths (``package_dirs``, then the
+    installed example-robot-data)."""
+    from wbcbench.errors import ModelError
+    from wbcbench.robots.sources import PACKAGE_PREFIX, default_package_dirs, resolve_package_path
+
+    spec, file = loaded.spec, str(loaded.path)
+    text = spec.initial.srdf
+    if text.startswith(PACKAGE_PREFIX):
+        dirs = [loaded.path.parent / d for d in spec.package_dirs] + default_package_dirs()
+        try:
+            return resolve_package_path(text, dirs, loaded.path, "initial.srdf")
+        except ModelError as exc:
+            message = str(exc).removeprefix(f"{file}: initial.srdf: ")
+            raise ScenarioError(file, "initial.srdf", message) from None
+    srdf = Path(text)
+    return srdf if srdf.is_absolute() else loaded.path.parent / srdf
+
+
 def initial_joints(loaded: Any, robot: Any) -> dict[str, float]:
     """The joint positions the scenario's ``initial`` names, checked against the robot.
 
@@ -65,8 +85,7 @@ def initial_joints(loaded: Any, robot: Any) -> dict[str, float]:
                 )
         prefix = "initial.joints"
     else:
-        srdf = Path(spec.srdf)
-        path = srdf if srdf.is_absolute() else loaded.path.parent / srdf
+        path = srdf_path(loaded)
         states = srdf_states(file, "initial.srdf", path)
         if spec.state not in states:
             raise ScenarioError(

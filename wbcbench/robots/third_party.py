@@ -1,0 +1,69 @@
+"""Real robots from other packages, loaded by name like the generated ones.
+
+Each entry names a model file inside an installed distribution (a ``package://`` path, resolved
+as :mod:`wbcbench.robots.sources` resolves mesh paths) and the facts a scenario needs that the
+file does not carry: contact frames and sole sizes, hand, base and torso frames. The files are
+read as published, with no edits; what the loader changes (floor, mimic joints) ``validate``
+prints. ``pip install 'wbcbench[robots]'`` installs them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from wbcbench.robots.spec import ContactRect, RobotInfo
+
+
+@dataclass(frozen=True)
+class ThirdPartyRobot:
+    """A robot model shipped by another distribution.
+
+    Attributes:
+        distribution: the distribution and version that ships it (``pip install`` it).
+        uri: ``package://<package>/<path>`` of the model file.
+        info: contact frames, sole rectangles [m] and named frames.
+        summary: one line for ``wbcbench list``.
+    """
+
+    distribution: str
+    uri: str
+    info: RobotInfo
+    summary: str
+
+
+_ERD = "example-robot-data==6.0.0"
+_ERD_ROBOTS = "package://example-robot-data/robots"
+
+# TALOS' box foot: 0.21 × 0.13 m, centred under the ankle; the sole frame is 3 mm above its
+# bottom face, which the initial placement accounts for.
+_TALOS_SOLE = ContactRect(-0.1, 0.1, -0.06, 0.06)
+# G1's foot touches through four 5 mm spheres at x ∈ {−0.05, 0.12}, y = ±0.025 / ±0.03 of the
+# ankle roll link, 35 mm below its origin: the support rectangle spans those points.
+_G1_SOLE = ContactRect(-0.05, 0.12, -0.025, 0.025)
+
+THIRD_PARTY: dict[str, ThirdPartyRobot] = {
+    "talos": ThirdPartyRobot(
+        distribution=_ERD,
+        uri=f"{_ERD_ROBOTS}/talos_data/robots/talos_reduced_box.urdf",
+        info=RobotInfo(
+            contact_frames=("left_sole_link", "right_sole_link"),
+            contact_rects={"left_sole_link": _TALOS_SOLE, "right_sole_link": _TALOS_SOLE},
+            hand_frames=("arm_left_7_link", "arm_right_7_link"),
+            base_body="base_link",
+            torso_body="torso_2_link",
+        ),
+        summary="PAL Robotics TALOS, reduced model with box feet (example-robot-data)",
+    ),
+    "g1": ThirdPartyRobot(
+        distribution=_ERD,
+        uri=f"{_ERD_ROBOTS}/g1_description/urdf/g1_29dof_rev_1_0.urdf",
+        info=RobotInfo(
+            contact_frames=("left_ankle_roll_link", "right_ankle_roll_link"),
+            contact_rects={"left_ankle_roll_link": _G1_SOLE, "right_ankle_roll_link": _G1_SOLE},
+            hand_frames=("left_rubber_hand", "right_rubber_hand"),
+            base_body="pelvis",
+            torso_body="torso_link",
+        ),
+        summary="Unitree G1, 29 DoF, point-contact feet (example-robot-data)",
+    ),
+}
