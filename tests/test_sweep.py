@@ -508,9 +508,15 @@ def test_a_timing_row_records_what_the_machine_was_doing(tmp_path: Path) -> None
     run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
     row = pd.read_csv(tmp_path / "out" / "runs.csv").iloc[0]
     conditions = json.loads(row["settings"])["conditions"]
-    assert {"load_1min", "load_per_core", "busy", "cpu", "cpu_mhz", "blas_threads"} <= set(
-        conditions
-    )
+    assert {
+        "load_1min",
+        "load_per_core",
+        "other_load_per_core",
+        "busy",
+        "cpu",
+        "cpu_mhz",
+        "blas_threads",
+    } <= set(conditions)
     assert conditions["blas_threads"] == 1  # the sweep times with one BLAS thread
     assert conditions["load_1min"] >= 0 and "load_1min_after" in conditions
 

@@ -53,7 +53,7 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
-#: load average per core above which a timing is flagged: the machine was busy with other work
+#: load of other work per core above which a timing is flagged: the machine was busy
 BUSY_LOAD_PER_CORE = 0.5
 
 
@@ -72,8 +72,9 @@ def cpu_mhz() -> float | None:
 
 def machine_conditions() -> dict[str, Any]:
     """What the machine was doing when a timing was taken: load average (1 min) in all and per
-    core, the CPU model and clock, the BLAS threads and whether the load makes it ``busy``
-    (above :data:`BUSY_LOAD_PER_CORE`)."""
+    core, the CPU model and clock, the BLAS threads and whether the machine is ``busy``: the load
+    of other work (the load average less the one the timing process itself keeps busy) above
+    :data:`BUSY_LOAD_PER_CORE` per core."""
     from threadpoolctl import threadpool_info
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
@@ -82,7 +83,8 @@ def machine_conditions() -> dict[str, Any]:
     return {
         "load_1min": round(load, 2),
         "load_per_core": round(load / cores, 2),
-        "busy": bool(load / cores > BUSY_LOAD_PER_CORE),
+        "other_load_per_core": round(max(0.0, load - 1.0) / cores, 2),
+        "busy": bool(max(0.0, load - 1.0) / cores > BUSY_LOAD_PER_CORE),
         "cpu": cpu_model(),
         "cpu_mhz": cpu_mhz(),
         "blas_threads": max(blas, default=0),

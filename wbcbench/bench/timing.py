@@ -192,8 +192,8 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
         )
         if before["busy"]:
             print(
-                f"warning: {job.label}: timed at load {before['load_1min']:g} "
-                f"({before['load_per_core']:g} per core, above {BUSY_LOAD_PER_CORE:g}): the "
+                f"warning: {job.label}: timed at load {before['load_1min']:g}, other work "
+                f"{before['other_load_per_core']:g} per core (above {BUSY_LOAD_PER_CORE:g}): the "
                 "machine was busy; compare its times only within this run",
                 file=sys.stderr,
             )

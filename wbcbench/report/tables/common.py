@@ -283,7 +283,9 @@ def _load_note(res: Results) -> str:
         return ""
     note = f" Load average while timing: {min(loads):g}–{max(loads):g}"
     if busy:
-        note += f"; {busy} of {len(loads)} timing rows on a busy machine (> 0.5 per core)"
+        note += (
+            f"; {busy} of {len(loads)} timing rows on a busy machine (other work > 0.5 per core)"
+        )
     return note + "."
 
 
