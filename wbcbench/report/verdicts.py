@@ -325,7 +325,8 @@ def verdicts(tables: list[PaperTable]) -> pd.DataFrame:
         else:
             try:
                 ours, verdict, reason = rule(table.frame)
-                reason += _fell(table) if "fell" not in reason else ""
+                if "fell" not in reason and _fell(table):
+                    reason = reason.rstrip(".") + "." + _fell(table)
             except (KeyError, IndexError, ValueError) as exc:
                 ours, verdict, reason = "—", "not run", f"its table lacks {exc}"
             v = Verdict(paper, claim, value, ours, verdict, reason, command)
