@@ -162,7 +162,7 @@ def rc_lqp_dof(t: PaperTable, out: Path) -> list[Path]:
     gain.set_ylabel("conventional / reduced step time")
     gain.set_title("the reduced model's speed-up")
     gain.grid(alpha=0.3)
-    gain.legend(fontsize=8, loc="upper left")
+    gain.legend(fontsize=8, loc="lower right")
     times.plot(
         dof, f["ours lqp median [µs]"].astype(float), "o-", color=CONVENTIONAL, label="ours, lqp"
     )
