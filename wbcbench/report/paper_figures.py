@@ -162,7 +162,7 @@ def rc_lqp_dof(t: PaperTable, out: Path) -> list[Path]:
     gain.set_ylabel("conventional / reduced step time")
     gain.set_title("the reduced model's speed-up")
     gain.grid(alpha=0.3)
-    gain.legend(fontsize=8, loc="lower right")
+    gain.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2)
     times.plot(
         dof, f["ours lqp median [µs]"].astype(float), "o-", color=CONVENTIONAL, label="ours, lqp"
     )
@@ -194,7 +194,7 @@ def rc_lqp_dof(t: PaperTable, out: Path) -> list[Path]:
     times.set_ylabel("median step [µs] (log)")
     times.set_title("absolute times (the paper's on another CPU)")
     times.grid(alpha=0.3, which="both")
-    times.legend(fontsize=8, loc="upper left")
+    times.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2)
     fig.suptitle("RC-LQP Fig. 5: double support, against the number of DoF", y=1.0)
     fig.subplots_adjust(top=0.84, wspace=0.35)
     return _save(fig, out, "paper_rc_lqp_dof")
