@@ -70,7 +70,7 @@ def run_tracking_guarded(
     scenario's duration.
     """
     from wbcbench.bench.guard import call_with_deadline, can_guard, tracking_deadline
-    from wbcbench.bench.runner import RunRecord, base_row
+    from wbcbench.bench.runner import ended_record
     from wbcbench.scenarios.load import load_scenario
 
     args = (scenario_path, overrides, settings, rid, version, log_every, check_factor)
@@ -82,9 +82,7 @@ def run_tracking_guarded(
     if outcome.ok:
         record: RunRecord = outcome.value
         return record
-    row = base_row(loaded, settings, rid, version)
-    row.update(status="failed", fell=False, message=outcome.message, ticks=0, failures=0)
-    return RunRecord(row, [], None)
+    return ended_record(loaded, settings, rid, version, "failed", outcome.message)
 
 
 def _arguments(job: Job, rid: str, version: str) -> tuple[Any, ...]:

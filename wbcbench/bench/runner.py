@@ -127,6 +127,22 @@ class RunRecord:
     log: dict[str, Any] | None = None
 
 
+def ended_record(
+    loaded: LoadedScenario,
+    settings: RunSettings,
+    rid: str,
+    version: str,
+    status: str,
+    message: str,
+    kind: str = "tracking",
+    extra: dict[str, Any] | None = None,
+) -> RunRecord:
+    """The row of a run that produced nothing (stopped by the guard, skipped): no metrics."""
+    row = base_row(loaded, settings, rid, version, kind, extra)
+    row.update(status=status, fell=False, message=message, ticks=0, failures=0)
+    return RunRecord(row, [], None)
+
+
 def compute_tracking(
     loaded: LoadedScenario,
     settings: RunSettings,
@@ -219,9 +235,7 @@ def execute(
         if outcome.ok:
             record: RunRecord = outcome.value
         else:
-            row = base_row(loaded, settings, rid, version)
-            row.update(status="failed", fell=False, message=outcome.message, ticks=0, failures=0)
-            record = RunRecord(row, [], None)
+            record = ended_record(loaded, settings, rid, version, "failed", outcome.message)
     else:
         record = compute_tracking(*args)
     store_record(store, loaded, record)

@@ -29,7 +29,7 @@ import numpy as np
 
 from wbcbench.bench.checks import SolverCapture, check_reported
 from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE, machine_conditions
-from wbcbench.bench.runner import RunRecord, base_row
+from wbcbench.bench.runner import RunRecord, base_row, ended_record
 from wbcbench.bench.sweep import HlsScalingSpec, Job, default_solver
 from wbcbench.errors import WbcBenchError
 from wbcbench.metrics.timing import timing_stats
@@ -113,9 +113,9 @@ def timing_metrics(stages: dict[str, np.ndarray], warmup: int) -> list[dict[str,
 
 
 def skipped_record(job: Job, rid: str, version: str, reason: str) -> RunRecord:
-    row = base_row(job.loaded, job.settings, rid, version, job.kind, job.extra)
-    row.update(status="skipped", fell=False, message=reason, ticks=0, failures=0)
-    return RunRecord(row, [], None)
+    return ended_record(
+        job.loaded, job.settings, rid, version, "skipped", reason, job.kind, job.extra
+    )
 
 
 def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
@@ -134,9 +134,9 @@ def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> 
     if outcome.ok:
         record: RunRecord = outcome.value
         return record
-    row = base_row(job.loaded, job.settings, rid, version, "timing", job.extra)
-    row.update(status="failed", fell=False, message=outcome.message, ticks=0, failures=0)
-    return RunRecord(row, [], None)
+    return ended_record(
+        job.loaded, job.settings, rid, version, "failed", outcome.message, "timing", job.extra
+    )
 
 
 def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:

@@ -136,10 +136,7 @@ def solve_fullqr_hierarchy_native(
     rank_tol: float = 1e-9,
 ) -> HlsResult:
     """:func:`wbcbench.qp.hls_baselines.solve_fullqr_hierarchy`, natively."""
-    equality_tasks(levels)
-    solver = NativeHls()
-    solver.load(levels, damping)
-    return solver.solve("full_qr", start_point(levels, x0), rank_tol)
+    return _baseline("full_qr", levels, damping, x0, rank_tol)
 
 
 def solve_svd_hierarchy_native(
@@ -150,10 +147,21 @@ def solve_svd_hierarchy_native(
     rank_tol: float = 1e-9,
 ) -> HlsResult:
     """:func:`wbcbench.qp.hls_baselines.solve_svd_hierarchy`, natively."""
+    return _baseline("svd", levels, damping, x0, rank_tol)
+
+
+def _baseline(
+    algorithm: str,
+    levels: Sequence[Level],
+    damping: float | Sequence[float] | None,
+    x0: Array | None,
+    rank_tol: float,
+) -> HlsResult:
+    """A baseline of equality levels only (rejected as the Python baselines reject them)."""
     equality_tasks(levels)
     solver = NativeHls()
     solver.load(levels, damping)
-    return solver.solve("svd", start_point(levels, x0), rank_tol)
+    return solver.solve(algorithm, start_point(levels, x0), rank_tol)
 
 
 #: the native counterpart of each of ``hls_baselines.ALGORITHMS``

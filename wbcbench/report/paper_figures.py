@@ -163,30 +163,22 @@ def rc_lqp_dof(t: PaperTable, out: Path) -> list[Path]:
     gain.set_title("the reduced model's speed-up")
     gain.grid(alpha=0.3)
     gain.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2)
-    times.plot(
-        dof, f["ours lqp median [µs]"].astype(float), "o-", color=CONVENTIONAL, label="ours, lqp"
-    )
-    times.plot(
-        dof, f["ours rc_lqp median [µs]"].astype(float), "o-", color=PROPOSED, label="ours, rc_lqp"
-    )
-    times.plot(
-        [d for d, _ in paper],
-        [v["conventional"] for _, v in paper],
-        "s",
-        mfc="none",
-        color=CONVENTIONAL,
-        ms=8,
-        label="paper, conventional",
-    )
-    times.plot(
-        [d for d, _ in paper],
-        [v["proposed"] for _, v in paper],
-        "s",
-        mfc="none",
-        color=PROPOSED,
-        ms=8,
-        label="paper, reduced",
-    )
+    for controller, method, label, color in (
+        ("lqp", "conventional", "conventional", CONVENTIONAL),
+        ("rc_lqp", "proposed", "reduced", PROPOSED),
+    ):
+        ours = f[f"ours {controller} median [µs]"].astype(float)
+        times.plot(dof, ours, "o-", color=color, label=f"ours, {controller}")
+        published = [v[method] for _, v in paper]
+        times.plot(
+            [d for d, _ in paper],
+            published,
+            "s",
+            mfc="none",
+            color=color,
+            ms=8,
+            label=f"paper, {label}",
+        )
     times.set_yscale("log")
     times.yaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
     times.yaxis.set_minor_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))

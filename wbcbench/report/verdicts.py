@@ -325,8 +325,9 @@ def verdicts(tables: list[PaperTable]) -> pd.DataFrame:
         else:
             try:
                 ours, verdict, reason = rule(table.frame)
-                if "fell" not in reason and _fell(table):
-                    reason = reason.rstrip(".") + "." + _fell(table)
+                fell = "" if "fell" in reason else _fell(table)
+                if fell:
+                    reason = reason.rstrip(".") + "." + fell
             except (KeyError, IndexError, ValueError) as exc:
                 ours, verdict, reason = "—", "not run", f"its table lacks {exc}"
             v = Verdict(paper, claim, value, ours, verdict, reason, command)
