@@ -63,11 +63,14 @@ class Validity:
 
 def primal_residual(problem: Problem, x: Array) -> float:
     """Max violation of equalities, inequalities and bounds at ``x`` ``(n,)``."""
+    return _primal_residual(problem, x, problem.A @ x, problem.C @ x)
+
+
+def _primal_residual(problem: Problem, x: Array, Ax: Array, Cx: Array) -> float:
     parts = [0.0]
     if problem.n_eq:
-        parts.append(float(np.max(np.abs(problem.A @ x - problem.b))))
+        parts.append(float(np.max(np.abs(Ax - problem.b))))
     if problem.n_in:
-        Cx = problem.C @ x
         parts.append(float(np.max(Cx - problem.u)))
         parts.append(float(np.max(problem.l - Cx)))
     if problem.lb is not None and problem.n:
@@ -91,27 +94,41 @@ def _support(z: Array, lo: Array, hi: Array) -> tuple[float, float]:
 
 def dual_measures(problem: Problem, sol: Solution) -> tuple[float | None, float | None]:
     """``(dual residual, duality gap)`` of ``sol``, or ``(None, None)`` without enough duals."""
-    x = sol.x
-    if x is None:
+    if sol.x is None:
         return None, None
+    terms = _dual_terms(problem, sol, sol.x, problem.H @ sol.x)
+    return (None, None) if terms is None else (terms.dual, abs(terms.gap))
+
+
+@dataclass(frozen=True)
+class _DualTerms:
+    dual: float  # the dual residual
+    gap: float  # the signed duality gap
+    ATy: Array
+    CTz: Array
+    support: float  # the bounds' terms of the gap
+
+
+def _dual_terms(problem: Problem, sol: Solution, x: Array, Hx: Array) -> _DualTerms | None:
+    """The dual measures and the products they are built of, None without enough duals."""
     y = sol.y if sol.y is not None else (np.zeros(0) if problem.n_eq == 0 else None)
     z = sol.z if sol.z is not None else (np.zeros(0) if problem.n_in == 0 else None)
     if y is None or z is None or (problem.has_box and sol.z_box is None):
-        return None, None
-    Hx = problem.H @ x
-    stat = Hx + problem.g + problem.A.T @ y + problem.C.T @ z
+        return None
+    ATy, CTz = problem.A.T @ y, problem.C.T @ z
+    stat = Hx + problem.g + ATy + CTz
     gap = float(x @ Hx + problem.g @ x + problem.b @ y)
-    term, viol = _support(z, problem.l, problem.u)
-    gap += term
+    support, viol = _support(z, problem.l, problem.u)
     if problem.has_box:
         assert sol.z_box is not None
         stat = stat + sol.z_box
         lb, ub = problem.box()
         term_box, viol_box = _support(sol.z_box, lb, ub)
-        gap += term_box
+        support += term_box
         viol = max(viol, viol_box)
+    gap += support
     dual = max(float(np.max(np.abs(stat), initial=0.0)), viol)
-    return dual, abs(gap)
+    return _DualTerms(dual, gap, ATy, CTz, support)
 
 
 def check_solution(
@@ -199,21 +216,16 @@ def relative_kkt(problem: Problem, sol: Solution) -> tuple[float, float | None, 
             scale.append(side[np.isfinite(side)])
     if problem.has_box:
         scale.append(x)
-    prim = primal_residual(problem, x) / (1.0 + _inf_norm(*scale))
-    dual, gap = dual_measures(problem, sol)
-    if dual is None or gap is None:
-        return prim, None, None
-    y = sol.y if sol.y is not None else np.zeros(0)
-    z = sol.z if sol.z is not None else np.zeros(0)
+    prim = _primal_residual(problem, x, Ax, Cx) / (1.0 + _inf_norm(*scale))
     Hx = problem.H @ x
-    parts = [Hx, problem.g, problem.A.T @ y, problem.C.T @ z]
+    d = _dual_terms(problem, sol, x, Hx)
+    if d is None:
+        return prim, None, None
+    parts = [Hx, problem.g, d.ATy, d.CTz]
     if sol.z_box is not None:
         parts.append(sol.z_box)
-    dual /= 1.0 + _inf_norm(*parts)
-    support = _support(z, problem.l, problem.u)[0]
-    if problem.has_box and sol.z_box is not None:
-        lb, ub = problem.box()
-        support += _support(sol.z_box, lb, ub)[0]
-    terms = [float(x @ Hx), float(problem.g @ x), float(problem.b @ y), support]
-    gap /= 1.0 + max(abs(t) for t in terms)
+    dual = d.dual / (1.0 + _inf_norm(*parts))
+    y = sol.y if sol.y is not None else np.zeros(0)
+    terms = [float(x @ Hx), float(problem.g @ x), float(problem.b @ y), d.support]
+    gap = abs(d.gap) / (1.0 + max(abs(t) for t in terms))
     return prim, dual, gap
