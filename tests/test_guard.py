@@ -26,6 +26,25 @@ def _square(x: float) -> float:
     return x * x
 
 
+def _print_natively_then_abort(lines: int) -> None:
+    for _ in range(lines):  # as a native library does: straight to file descriptor 1
+        os.write(1, b"error\n")
+    os.abort()
+
+
+def test_what_a_run_prints_goes_to_its_log_not_the_sweep_output(tmp_path: Path, capfd) -> None:
+    printed = tmp_path / "logs" / "run.stdout.txt"
+    printed.parent.mkdir()
+    outcome = call_with_deadline(_print_natively_then_abort, (1000,), 30, printed)
+    assert not outcome.ok
+    assert outcome.message.endswith("(what it printed: logs/run.stdout.txt)")
+    assert printed.read_text() == "error\n" * 1000
+    assert "error" not in capfd.readouterr().out
+    # a run that prints nothing leaves no file
+    assert call_with_deadline(_square, (2.0,), 30, printed).value == 4.0
+    assert not printed.exists()
+
+
 def test_a_result_within_the_deadline_comes_back() -> None:
     outcome = call_with_deadline(_square, (3.0,), 30)
     assert outcome.ok and outcome.value == 9.0

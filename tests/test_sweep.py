@@ -189,6 +189,21 @@ def test_every_controller_that_applies_is_planned_and_skips_are_recorded(tmp_pat
     }
 
 
+def test_a_controller_with_its_own_solver_runs_once_whatever_the_backends(tmp_path: Path) -> None:
+    """kin_hqp solves its hierarchy itself: one row under its solver's name, at tier default,
+    and a note that the named backends do not apply to it."""
+    path = write(
+        tmp_path,
+        "version: 1\ntracking:\n  - scenarios: [rqr_reach]\n    controllers: [kin_hqp]\n"
+        "    solvers: [proxqp, daqp]\n    tiers: [default, high]\n    impls: [python]\n",
+    )
+    p = plan(path)
+    assert [(j.settings.solver, j.settings.tier) for j in p.jobs] == [("hls", "default")]
+    assert "tracking[0] · kin_hqp: solves with its own hls; solvers do not apply" in (
+        p.not_applicable
+    )
+
+
 def final_table(out: Path) -> pd.DataFrame:
     """Rows by run id; tracking metrics exact, timing metrics by name only (times vary)."""
     runs = pd.read_csv(out / "runs.csv").set_index("run_id").sort_index()

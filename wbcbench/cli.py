@@ -128,13 +128,22 @@ def _run_matrix(
     show_progress: bool,
 ) -> pd.DataFrame:
     from wbcbench.bench.results import ResultsStore
-    from wbcbench.bench.runner import execute
+    from wbcbench.bench.runner import code_version, execute, run_id
+    from wbcbench.controllers.registry import controller_class
     from wbcbench.sim.closed_loop import RunSettings
 
     store = ResultsStore(out)
-    combos = [(sc, c, s) for sc in scenarios for c in controllers for s in solvers]
-    for i, (loaded, controller, solver) in enumerate(combos, 1):
-        settings = RunSettings(controller=controller, solver=solver, tier=tier, mode=mode)
+    runs_of: dict[str, list[tuple[str, str]]] = {}  # controller → its (solver, tier) runs
+    for c in controllers:
+        own = controller_class(c).own_solver  # it runs once, with its own solver
+        if own and list(solvers) != [default_solver()]:
+            print(f"note: {c} solves with its own {own}; --solver does not apply to it")
+        runs_of[c] = [(own, "default")] if own else [(s, tier) for s in solvers]
+    combos = [(sc, c, s, t) for sc in scenarios for c in controllers for s, t in runs_of[c]]
+    version, planned = code_version(store), []
+    for i, (loaded, controller, solver, run_tier) in enumerate(combos, 1):
+        settings = RunSettings(controller=controller, solver=solver, tier=run_tier, mode=mode)
+        planned.append(run_id(loaded, settings, version))
         label = f"[{i}/{len(combos)}] {loaded.name} · {controller} · {solver}"
         n_ticks = round(loaded.spec.duration * loaded.spec.control_rate)
         with tqdm(
@@ -154,7 +163,8 @@ def _run_matrix(
             note = f" — {row['message']}" if row.get("message") else ""
             print(f"{label}: {row['status']}{note}")
     store.refresh_mirror()
-    return summary_table(store.runs(), store.metrics())
+    runs = store.runs()  # this command's rows, not what the folder held before
+    return summary_table(runs[runs["run_id"].isin(planned)], store.metrics())
 
 
 def summary_table(runs: pd.DataFrame, metrics: pd.DataFrame) -> pd.DataFrame:
@@ -206,7 +216,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
     table = _run_matrix(
         scenarios, controllers, solvers, args.tier, args.mode, out, not args.no_progress
     )
-    table = table[table["scenario"] == scenarios[0].name]
     _print_table(table)
     print(f"results in {out}/ (runs.csv, metrics.csv, logs/, provenance.json)")
     return 0 if (table["status"] == "ok").all() else 1
@@ -423,7 +432,8 @@ def build_parser() -> argparse.ArgumentParser:
             "--solver",
             action="append",
             metavar="NAME",
-            help="a QP backend (repeatable; `default`, `native`, `all` or names)",
+            help="a QP backend (repeatable; `default`, `native`, `all` or names); kin_hqp, "
+            "which solves with its own hls, runs once whatever this says",
         )
         p.add_argument("--tier", default="default", help="accuracy tier: default, low, mid, high")
         p.add_argument(

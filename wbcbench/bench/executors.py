@@ -62,14 +62,16 @@ def run_tracking_guarded(
     log_every: int,
     check_factor: float | None,
     wall_limit_s: float | None,
+    folder: str | None = None,
 ) -> RunRecord:
     """:func:`run_tracking` in a child process under the wall-clock guard
     (:mod:`wbcbench.bench.guard`): a run that hangs or crashes becomes a ``failed`` row.
 
     ``wall_limit_s`` defaults to :func:`~wbcbench.bench.guard.tracking_deadline` of the
-    scenario's duration.
+    scenario's duration. What the run prints goes to ``folder``'s ``logs/<rid>.stdout.txt``.
     """
     from wbcbench.bench.guard import call_with_deadline, can_guard, tracking_deadline
+    from wbcbench.bench.results import printed_path
     from wbcbench.bench.runner import ended_record
     from wbcbench.scenarios.load import load_scenario
 
@@ -78,14 +80,15 @@ def run_tracking_guarded(
         return run_tracking(*args)
     loaded = load_scenario(scenario_path, list(overrides))
     seconds = wall_limit_s or tracking_deadline(loaded.spec.duration)
-    outcome = call_with_deadline(run_tracking, args, seconds)
+    printed = printed_path(folder, rid) if folder else None
+    outcome = call_with_deadline(run_tracking, args, seconds, printed)
     if outcome.ok:
         record: RunRecord = outcome.value
         return record
     return ended_record(loaded, settings, rid, version, "failed", outcome.message)
 
 
-def _arguments(job: Job, rid: str, version: str) -> tuple[Any, ...]:
+def _arguments(job: Job, rid: str, version: str, folder: str | None) -> tuple[Any, ...]:
     return (
         job.scenario_path,
         job.overrides,
@@ -95,6 +98,7 @@ def _arguments(job: Job, rid: str, version: str) -> tuple[Any, ...]:
         int(job.options.get("log_every", 1)),
         job.options.get("check_factor"),
         job.options.get("wall_limit_s"),
+        folder,
     )
 
 
@@ -112,9 +116,12 @@ class SerialExecutor:
     ) -> None:
         return None
 
-    def run(self, jobs: Sequence[tuple[Job, str]], version: str) -> Iterator[tuple[Job, Any]]:
+    def run(
+        self, jobs: Sequence[tuple[Job, str]], version: str, folder: str | None = None
+    ) -> Iterator[tuple[Job, Any]]:
+        """Each job's record as it finishes; ``folder``: the results folder (for its logs)."""
         for job, rid in jobs:
-            yield job, run_tracking_guarded(*_arguments(job, rid, version))
+            yield job, run_tracking_guarded(*_arguments(job, rid, version, folder))
 
 
 class DaskExecutor:
@@ -159,14 +166,17 @@ class DaskExecutor:
         if self._cluster is not None:
             self._cluster.close()
 
-    def run(self, jobs: Sequence[tuple[Job, str]], version: str) -> Iterator[tuple[Job, Any]]:
+    def run(
+        self, jobs: Sequence[tuple[Job, str]], version: str, folder: str | None = None
+    ) -> Iterator[tuple[Job, Any]]:
+        """As :meth:`SerialExecutor.run`; the workers must see ``folder`` (a local cluster)."""
         from dask.distributed import as_completed
 
         futures = {}
         for job, rid in jobs:
             # pure=False: identical arguments must still run (a rerun after a code change)
             future = self._client.submit(
-                run_tracking_guarded, *_arguments(job, rid, version), pure=False
+                run_tracking_guarded, *_arguments(job, rid, version, folder), pure=False
             )
             futures[future] = job
         try:

@@ -11,10 +11,13 @@ Either way the caller turns the outcome into a ``failed`` row and the sweep goes
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import signal
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
+from pathlib import Path
 from typing import Any
 
 _context: Any = None
@@ -48,7 +51,24 @@ def can_guard() -> bool:
     return not mp.current_process().daemon
 
 
-def _child(conn: Connection, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
+def _redirect_stdout(path: str) -> None:
+    """Send this process's file descriptor 1 to ``path``: native libraries print there (a
+    solver's banner or debug lines), bypassing Python, and a run's prints belong in its log, not
+    in the sweep's output. Left as it is when the file cannot be opened."""
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    except OSError:
+        return
+    sys.stdout.flush()
+    os.dup2(fd, 1)
+    os.close(fd)
+
+
+def _child(
+    conn: Connection, fn: Callable[..., Any], args: tuple[Any, ...], stdout: str | None
+) -> None:
+    if stdout:
+        _redirect_stdout(stdout)
     try:
         result: tuple[str, Any] = ("ok", fn(*args))
     except BaseException as exc:  # the parent reports it; the child must not die silently
@@ -67,39 +87,58 @@ def _died(exitcode: int | None) -> str:
     return f"the run's process ended with exit code {exitcode} before it returned"
 
 
-def call_with_deadline(fn: Callable[..., Any], args: tuple[Any, ...], seconds: float) -> Guarded:
+def call_with_deadline(
+    fn: Callable[..., Any],
+    args: tuple[Any, ...],
+    seconds: float,
+    stdout: str | Path | None = None,
+) -> Guarded:
     """``fn(*args)`` in a child process, abandoned (killed) after ``seconds`` of wall time.
 
     ``fn`` and ``args`` must pickle (a module-level function and plain data); so must the
-    result. Never raises for what happens in the child.
+    result. Never raises for what happens in the child. ``stdout``: a file that receives what
+    the child prints to its standard output (kept only when something was printed; a failed
+    outcome's message then names it).
     """
     ctx = _fork()
     receiver, sender = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(sender, fn, args), daemon=True)
+    out = str(stdout) if stdout else None
+    proc = ctx.Process(target=_child, args=(sender, fn, args, out), daemon=True)
     proc.start()
     sender.close()
     try:
-        if not receiver.poll(seconds):
-            proc.kill()
-            return Guarded(
-                None,
-                False,
-                f"exceeded the wall-clock guard of {seconds:g} s (a hung solver or native call); "
-                "the run was stopped",
-            )
-        try:
-            status, value = receiver.recv()
-        except EOFError:
-            proc.join(5)
-            return Guarded(None, False, _died(proc.exitcode))
-        if status == "raised":
-            return Guarded(None, False, f"the run raised {value}")
-        return Guarded(value, True)
+        outcome = _wait(proc, receiver, seconds)
     finally:
         receiver.close()
         proc.join(5)
         if proc.is_alive():
             proc.kill()
+    printed = Path(out) if out else None
+    if printed is not None and printed.exists():
+        if printed.stat().st_size == 0:
+            printed.unlink()
+        elif not outcome.ok:
+            outcome.message += f" (what it printed: {printed.parent.name}/{printed.name})"
+    return outcome
+
+
+def _wait(proc: Any, receiver: Connection, seconds: float) -> Guarded:
+    if not receiver.poll(seconds):
+        proc.kill()
+        return Guarded(
+            None,
+            False,
+            f"exceeded the wall-clock guard of {seconds:g} s (a hung solver or native call); "
+            "the run was stopped",
+        )
+    try:
+        status, value = receiver.recv()
+    except EOFError:
+        proc.join(5)
+        return Guarded(None, False, _died(proc.exitcode))
+    if status == "raised":
+        return Guarded(None, False, f"the run raised {value}")
+    return Guarded(value, True)
 
 
 def tracking_deadline(duration: float) -> float:

@@ -55,6 +55,12 @@ RUN_KINDS = ("tracking", "timing")
 METRIC_COLUMNS = ("run_id", "scenario", "controller", "solver", "task", "metric", "value", "unit")
 
 
+def printed_path(folder: str | Path, name: str) -> Path:
+    """Where a guarded run's standard output goes (``logs/<name>.stdout.txt``, kept only when
+    something was printed): native libraries' banners and debug lines, not the sweep's output."""
+    return Path(folder) / "logs" / f"{name}.stdout.txt"
+
+
 class ResultsStore:
     """Append-only tidy tables in one folder."""
 

@@ -223,6 +223,7 @@ def execute(
     that hangs or whose process dies is a ``failed`` row. The record then carries no
     ``RunResult`` (it does not cross processes)."""
     from wbcbench.bench.guard import call_with_deadline, can_guard, tracking_deadline
+    from wbcbench.bench.results import printed_path
 
     version = code_version(store)
     rid = run_id(loaded, settings, version)
@@ -231,7 +232,8 @@ def execute(
     args = (loaded, settings, rid, version, progress, check_factor)
     if can_guard():
         seconds = wall_limit_s or tracking_deadline(loaded.spec.duration)
-        outcome = call_with_deadline(_tracking_without_result, args, seconds)
+        printed = printed_path(store.folder, rid)
+        outcome = call_with_deadline(_tracking_without_result, args, seconds, printed)
         if outcome.ok:
             record: RunRecord = outcome.value
         else:

@@ -604,6 +604,18 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
         check_solver_choices(matrix.solvers, matrix.tiers, matrix.modes, file, key)
         offered, notes = offered_choices(solvers, matrix.tiers, matrix.modes, key)
         not_applicable += notes
+        backend_runs = [
+            (solver, tier, mode)
+            for solver in solvers
+            for tier in matrix.tiers
+            for mode in matrix.modes
+            if offered[(solver, tier, mode)]
+        ]
+        runs_of = {  # a controller that brings its own solver runs once
+            c: [(own, "default", matrix.modes[0])] if own else backend_runs
+            for c, own in ((c, controller_class(c).own_solver) for c, _ in controllers)
+        }
+
         robots = _robot_overrides(matrix, file, key)
         combos = [
             (robot, variant, f"{key}.robots[{r}]" if robot else f"{key}.variants[{v}]")
@@ -632,6 +644,10 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                 if matrix.wall_limit_s is not None:
                     options["wall_limit_s"] = matrix.wall_limit_s
                 for controller, explicit in controllers:
+                    own = controller_class(controller).own_solver
+                    note = f"{key} · {controller}: solves with its own {own}; solvers do not apply"
+                    if own and matrix.solvers != ["default"] and note not in not_applicable:
+                        not_applicable.append(note)
                     reason = controller_class(controller).applies_to(loaded.spec)
                     if reason:
                         if explicit:
@@ -642,37 +658,29 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                         for variant in _config_variants(matrix, controller, loaded, file, key)
                         for impl in _impl_configs(matrix.impls, controller)
                     ]:
-                        for solver in solvers:
-                            for tier in matrix.tiers:
-                                for mode in matrix.modes:
-                                    if not offered[(solver, tier, mode)]:
-                                        continue
-                                    settings = RunSettings(
-                                        controller=controller,
-                                        solver=solver,
-                                        tier=tier,
-                                        mode=mode,
-                                        controller_config=dict(config),
-                                    )
-                                    skip = next(
-                                        (
-                                            r.reason
-                                            for r in matrix.skip
-                                            if r.matches(loaded.name, settings)
-                                        ),
-                                        "",
-                                    )
-                                    jobs.append(
-                                        Job(
-                                            kind,
-                                            str(loaded.path),
-                                            overrides,
-                                            settings,
-                                            dict(options),
-                                            skip,
-                                            loaded,
-                                        )
-                                    )
+                        for solver, tier, mode in runs_of[controller]:
+                            settings = RunSettings(
+                                controller=controller,
+                                solver=solver,
+                                tier=tier,
+                                mode=mode,
+                                controller_config=dict(config),
+                            )
+                            skip = next(
+                                (r.reason for r in matrix.skip if r.matches(loaded.name, settings)),
+                                "",
+                            )
+                            jobs.append(
+                                Job(
+                                    kind,
+                                    str(loaded.path),
+                                    overrides,
+                                    settings,
+                                    dict(options),
+                                    skip,
+                                    loaded,
+                                )
+                            )
     comparison = spec.solver_comparison
     targets: list[tuple[Any, str, dict[str, Any]]] = []
     comp_solvers: list[str] = []
@@ -842,7 +850,7 @@ def run_sweep(
         timing = [(j, r) for j, r in pending if j.kind == "timing" and not j.skip_reason]
         if tracking and budget[0] > 0:
             with make_executor(executor, scheduler) as ex:
-                for job, record in ex.run(tracking[: budget[0]], version):
+                for job, record in ex.run(tracking[: budget[0]], version, str(store.folder)):
                     bar.set_postfix_str(job.label[:60])
                     finished(job, record)
                     bar.update()
@@ -864,12 +872,11 @@ def run_sweep(
         from wbcbench.bench.solver_comparison import run_solver_comparison
 
         comparison = (plan, store.folder, show_progress)
-        _guarded(
-            "solver comparison", run_solver_comparison, comparison, plan.comparison.wall_limit_s
-        )
+        limit = plan.comparison.wall_limit_s
+        _guarded("solver comparison", run_solver_comparison, comparison, limit, store.folder)
     if plan.spec.hls_scaling is not None:
         scaling = (plan.spec.hls_scaling, store, version)
-        _guarded("hls scaling", run_hls_scaling, scaling, HLS_WALL_LIMIT_S)
+        _guarded("hls scaling", run_hls_scaling, scaling, HLS_WALL_LIMIT_S, store.folder)
         store.refresh_mirror()  # (its rows were appended by the child)
     return report
 
@@ -878,13 +885,16 @@ def run_sweep(
 HLS_WALL_LIMIT_S = 1800.0
 
 
-def _guarded(what: str, fn: Callable[..., Any], args: tuple[Any, ...], seconds: float) -> None:
+def _guarded(
+    what: str, fn: Callable[..., Any], args: tuple[Any, ...], seconds: float, folder: Path
+) -> None:
     """``fn(*args)`` with one BLAS thread, in a forked child under the wall-clock guard where the
     process may start one: a hang or a crash is reported and the sweep ends normally (what the
-    child wrote to the folder stays)."""
+    child wrote to the folder stays; what it printed goes to ``folder``'s logs)."""
     from threadpoolctl import threadpool_limits
 
     from wbcbench.bench.guard import call_with_deadline, can_guard
+    from wbcbench.bench.results import printed_path
 
     def limited(*a: Any) -> Any:
         with threadpool_limits(1):
@@ -893,6 +903,7 @@ def _guarded(what: str, fn: Callable[..., Any], args: tuple[Any, ...], seconds: 
     if not can_guard():
         limited(*args)
         return
-    outcome = call_with_deadline(limited, args, seconds)
+    printed = printed_path(folder, what.replace(" ", "_"))
+    outcome = call_with_deadline(limited, args, seconds, printed)
     if not outcome.ok:
         print(f"{what}: {outcome.message}")

@@ -122,6 +122,7 @@ def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> 
     """:func:`run_timing_job` in a child process under the wall-clock guard
     (:mod:`wbcbench.bench.guard`): a run that hangs or crashes becomes a ``failed`` row."""
     from wbcbench.bench.guard import call_with_deadline, can_guard, timing_deadline
+    from wbcbench.bench.results import printed_path
 
     if not can_guard():
         return run_timing_job(job, rid, version, folder)
@@ -130,7 +131,8 @@ def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> 
     seconds = job.options.get("wall_limit_s") or timing_deadline(
         window[1] if window is not None else spec.duration, int(job.options["ticks"])
     )
-    outcome = call_with_deadline(run_timing_job, (job, rid, version, str(folder)), seconds)
+    args = (job, rid, version, str(folder))
+    outcome = call_with_deadline(run_timing_job, args, seconds, printed_path(folder, rid))
     if outcome.ok:
         record: RunRecord = outcome.value
         return record

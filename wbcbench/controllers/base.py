@@ -241,6 +241,10 @@ class Controller(ABC):
     reference_solvers: ClassVar[tuple[str, ...]] = ("proxqp", "daqp")
     #: the controller has a native tick (``impl: native``; its Config is a NativeImplConfig)
     has_native: ClassVar[bool] = False
+    #: the name of the solver the controller brings itself ("" when its QPs go through the
+    #: run's backend); such a controller runs once per scenario and settings, recorded under
+    #: this name at tier ``default``, whatever backends and tiers a sweep asks for
+    own_solver: ClassVar[str] = ""
 
     @classmethod
     def applies_to(cls, scenario: Scenario) -> str:

@@ -298,6 +298,8 @@ class KinHqp(Controller):
     summary = "prioritized kinematic control (RQR-HQP): velocity-level HLS, inequalities"
     kind = "velocity"
     has_native = True
+    #: the hierarchy is solved by wbcbench.qp.hls, not by a QP backend
+    own_solver = "hls"
     Config = KinHqpConfig
     config: KinHqpConfig
 
