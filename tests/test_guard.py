@@ -45,6 +45,24 @@ def test_what_a_run_prints_goes_to_its_log_not_the_sweep_output(tmp_path: Path, 
     assert not printed.exists()
 
 
+def _guard_a_hang_in_a_daemon(queue) -> None:
+    queue.put(call_with_deadline(_hang, (60.0,), 1.0).message)
+
+
+def test_a_daemonic_process_guards_its_runs_too() -> None:
+    """Dask workers are daemonic processes, which multiprocessing forbids to have children:
+    the guard forks directly."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork")
+    queue = ctx.Queue()
+    daemon = ctx.Process(target=_guard_a_hang_in_a_daemon, args=(queue,), daemon=True)
+    daemon.start()
+    message = queue.get(timeout=60)
+    daemon.join(10)
+    assert message.startswith("exceeded the wall-clock guard of 1 s")
+
+
 def test_a_result_within_the_deadline_comes_back() -> None:
     outcome = call_with_deadline(_square, (3.0,), 30)
     assert outcome.ok and outcome.value == 9.0

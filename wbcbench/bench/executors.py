@@ -138,20 +138,17 @@ class DaskExecutor:
         self._client: Any = None
 
     def __enter__(self) -> DaskExecutor:
-        import dask
         from dask.distributed import Client, LocalCluster
 
         if self.address:
             self._client = Client(self.address)
         else:
-            # non-daemonic workers may start the child process of each run's wall-clock guard
-            with dask.config.set({"distributed.worker.daemon": False}):
-                self._cluster = LocalCluster(
-                    n_workers=self.n_workers,
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=None,
-                )
+            self._cluster = LocalCluster(
+                n_workers=self.n_workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+            )
             self._client = Client(self._cluster)
         return self
 

@@ -10,17 +10,16 @@ Either way the caller turns the outcome into a ``failed`` row and the sweep goes
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import os
+import pickle
+import select
 import signal
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
-
-_context: Any = None
 
 
 @dataclass
@@ -38,17 +37,12 @@ class Guarded:
     message: str = ""
 
 
-def _fork() -> Any:
-    global _context
-    if _context is None:
-        _context = mp.get_context("fork")
-    return _context
-
-
 def can_guard() -> bool:
-    """False inside a daemonic process (e.g. a worker of a remote dask cluster), which may not
-    start children; such runs go unguarded."""
-    return not mp.current_process().daemon
+    """Whether this platform can fork (POSIX): elsewhere runs go unguarded.
+
+    The child is forked directly, not through :mod:`multiprocessing`, so that daemonic
+    processes (the workers of a dask cluster, local or remote) guard their runs too."""
+    return hasattr(os, "fork")
 
 
 def _redirect_stdout(path: str) -> None:
@@ -65,26 +59,53 @@ def _redirect_stdout(path: str) -> None:
 
 
 def _child(
-    conn: Connection, fn: Callable[..., Any], args: tuple[Any, ...], stdout: str | None
+    write_fd: int, fn: Callable[..., Any], args: tuple[Any, ...], stdout: str | None
 ) -> None:
-    if stdout:
-        _redirect_stdout(stdout)
+    """The forked child: run, send the pickled outcome, and leave without the parent's exit
+    handlers (``os._exit``)."""
     try:
-        result: tuple[str, Any] = ("ok", fn(*args))
-    except BaseException as exc:  # the parent reports it; the child must not die silently
-        result = ("raised", f"{type(exc).__name__}: {exc}")
-    conn.send(result)
-    conn.close()
-
-
-def _died(exitcode: int | None) -> str:
-    if exitcode is not None and exitcode < 0:
+        if stdout:
+            _redirect_stdout(stdout)
         try:
-            name = signal.Signals(-exitcode).name
+            result: tuple[str, Any] = ("ok", fn(*args))
+        except BaseException as exc:  # the parent reports it; the child must not die silently
+            result = ("raised", f"{type(exc).__name__}: {exc}")
+        try:
+            data = pickle.dumps(result, protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception as exc:  # an unpicklable result is the run's failure, not a crash
+            data = pickle.dumps(("raised", f"its result does not pickle: {exc}"))
+        with os.fdopen(write_fd, "wb") as pipe:
+            pipe.write(data)
+        sys.stdout.flush()
+        sys.stderr.flush()
+    finally:
+        os._exit(0)
+
+
+def _died(status: int) -> str:
+    if os.WIFSIGNALED(status):
+        number = os.WTERMSIG(status)
+        try:
+            name = signal.Signals(number).name
         except ValueError:
-            name = f"signal {-exitcode}"
+            name = f"signal {number}"
         return f"the run's process died of {name} (a native crash or abort) before it returned"
-    return f"the run's process ended with exit code {exitcode} before it returned"
+    code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else status
+    return f"the run's process ended with exit code {code} before it returned"
+
+
+def _read_until(read_fd: int, deadline: float) -> bytes | None:
+    """Everything the child writes until it closes the pipe, or None at the deadline (the
+    pipe is drained as it fills: a large result never blocks the child)."""
+    chunks: list[bytes] = []
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0 or not select.select([read_fd], [], [], left)[0]:
+            return None
+        chunk = os.read(read_fd, 1 << 20)
+        if not chunk:
+            return b"".join(chunks)
+        chunks.append(chunk)
 
 
 def call_with_deadline(
@@ -93,26 +114,38 @@ def call_with_deadline(
     seconds: float,
     stdout: str | Path | None = None,
 ) -> Guarded:
-    """``fn(*args)`` in a child process, abandoned (killed) after ``seconds`` of wall time.
+    """``fn(*args)`` in a forked child process, abandoned (killed) after ``seconds`` of wall
+    time.
 
-    ``fn`` and ``args`` must pickle (a module-level function and plain data); so must the
-    result. Never raises for what happens in the child. ``stdout``: a file that receives what
-    the child prints to its standard output (kept only when something was printed; a failed
-    outcome's message then names it).
+    The result must pickle. Never raises for what happens in the child. ``stdout``: a file that
+    receives what the child prints to its standard output (kept only when something was
+    printed; a failed outcome's message then names it).
     """
-    ctx = _fork()
-    receiver, sender = ctx.Pipe(duplex=False)
     out = str(stdout) if stdout else None
-    proc = ctx.Process(target=_child, args=(sender, fn, args, out), daemon=True)
-    proc.start()
-    sender.close()
+    read_fd, write_fd = os.pipe()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:
+        os.close(read_fd)
+        _child(write_fd, fn, args, out)
+    os.close(write_fd)
     try:
-        outcome = _wait(proc, receiver, seconds)
+        data = _read_until(read_fd, time.monotonic() + seconds)
     finally:
-        receiver.close()
-        proc.join(5)
-        if proc.is_alive():
-            proc.kill()
+        os.close(read_fd)
+    if data is None:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        outcome = Guarded(
+            None,
+            False,
+            f"exceeded the wall-clock guard of {seconds:g} s (a hung solver or native call); "
+            "the run was stopped",
+        )
+    else:
+        _, status = os.waitpid(pid, 0)
+        outcome = _outcome(data, status)
     printed = Path(out) if out else None
     if printed is not None and printed.exists():
         if printed.stat().st_size == 0:
@@ -122,21 +155,11 @@ def call_with_deadline(
     return outcome
 
 
-def _wait(proc: Any, receiver: Connection, seconds: float) -> Guarded:
-    if not receiver.poll(seconds):
-        proc.kill()
-        return Guarded(
-            None,
-            False,
-            f"exceeded the wall-clock guard of {seconds:g} s (a hung solver or native call); "
-            "the run was stopped",
-        )
-    try:
-        status, value = receiver.recv()
-    except EOFError:
-        proc.join(5)
-        return Guarded(None, False, _died(proc.exitcode))
-    if status == "raised":
+def _outcome(data: bytes, status: int) -> Guarded:
+    if not data:
+        return Guarded(None, False, _died(status))
+    kind, value = pickle.loads(data)
+    if kind == "raised":
         return Guarded(None, False, f"the run raised {value}")
     return Guarded(value, True)
 
