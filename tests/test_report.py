@@ -293,6 +293,47 @@ def test_to_osf_s2_ratio_of_total_amendments_with_the_run_status(tmp_path: Path)
     assert "identical [10000000.0]" in notes
 
 
+def test_to_osf_s3_compares_each_tasks_error_before_and_after_the_conflict(
+    tmp_path: Path,
+) -> None:
+    """Synthetic logs: the strict hierarchy keeps the elbow's error, the weighted QP lets it
+    grow 1000×; both give the hand up; a shortened run is not picked."""
+    import numpy as np
+
+    from wbcbench.scenarios.load import load_scenario
+
+    loaded = load_scenario("lee2021access_s3_conflict")
+    store = ResultsStore(tmp_path)
+    store.record_scenario(loaded.name, loaded.hash, str(loaded.path))
+    t = np.arange(0.0, 16.0, 0.01)
+    conflict = t >= 11.0
+    for controller, elbow_after in (("to_osf", 1e-6), ("qp_wbc", 1e-3)):
+        log = {
+            "t": t,
+            "err.l_elbow.pos": np.where(conflict, elbow_after, 1e-6),
+            "err.l_hand.pos": np.where(conflict, 0.2, 1e-6),
+            "err.posture.joint": np.ones(t.size),
+        }
+        row = _s2_row(loaded, controller, "{}", controller=controller, sim_duration_s=16.0)
+        store.add_run(row, [], log)
+    short = _s2_row(loaded, "short", "{}", scenario_hash="other", sim_duration_s=0.5)
+    store.add_run(short, [], {"t": np.zeros(1), "err.l_hand.pos": np.ones(1)})
+    table = TABLES["to_osf_s3"](load_results(tmp_path))
+    assert table.frame is not None
+    f = table.frame.set_index(["controller", "task"])
+    assert list(f.index) == [
+        ("to_osf", "l_elbow (pos)"),
+        ("to_osf", "l_hand (pos)"),
+        ("qp_wbc", "l_elbow (pos)"),
+        ("qp_wbc", "l_hand (pos)"),
+    ]
+    assert f.loc[("to_osf", "l_elbow (pos)"), "after / before"] == pytest.approx(1.0)
+    assert f.loc[("qp_wbc", "l_elbow (pos)"), "after / before"] == pytest.approx(1000.0)
+    assert f.loc[("qp_wbc", "l_hand (pos)"), "role"] == "T3"
+    assert f.loc[("to_osf", "l_hand (pos)"), "after"] == pytest.approx(0.2)
+    assert "to_osf 1e-06 m, nan rad; qp_wbc 0.001 m, nan rad" in " ".join(table.notes)
+
+
 def test_to_osf_table3_has_one_row_per_task_count_from_the_runs_overrides(tmp_path: Path) -> None:
     """Timing rows of the first task only (an override in their settings) and of all five."""
     store = ResultsStore(tmp_path)

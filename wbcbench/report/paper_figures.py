@@ -6,6 +6,8 @@ number its table does not:
   one facet per unit;
 * ``paper_to_osf_s2``: TO-OSF Scenario #2, priority / identical weighting: the total amendment
   ratio beside the paper's ≈ 7.5, and each task's error ratio;
+* ``paper_to_osf_s3``: TO-OSF Scenario #3, each task's mean error before and once T3 conflicts
+  with T2, strict hierarchy against weighted QP-WBC (log axes, one facet per unit);
 * ``paper_osf_hqp_table3``: OSF-HQP Table III per level, conventional vs proposed, the paper's
   and ours in two facets (log time axis), with the speed-ups above;
 * ``paper_rc_lqp_dof``: RC-LQP's gain (conventional / reduced) against the DoF: ours, the
@@ -98,6 +100,49 @@ def to_osf_s2(t: PaperTable, out: Path) -> list[Path]:
     fig.suptitle(title, y=1.02 if "\n" in title else 0.98)
     fig.subplots_adjust(top=0.8, wspace=0.3)
     return _save(fig, out, "paper_to_osf_s2")
+
+
+def to_osf_s3(t: PaperTable, out: Path) -> list[Path]:
+    f = t.frame
+    assert f is not None
+    styles = {
+        "to_osf": (PROPOSED, "strict hierarchy (to_osf)"),
+        "qp_wbc": (CONVENTIONAL, "weighted QP-WBC (qp_wbc)"),
+    }
+    units = [u for u in ("m", "rad") if (f["unit"] == u).any()]
+    fig, axes = plt.subplots(1, len(units), figsize=(5.0 * len(units), 3.6), squeeze=False)
+    width = 0.38
+    for ax, unit in zip(axes[0], units, strict=True):
+        g = f[f["unit"] == unit]
+        tasks = list(dict.fromkeys(g["task"]))
+        x = np.arange(len(tasks))
+        for k, (controller, (color, label)) in enumerate(styles.items()):
+            c = g[g["controller"] == controller].set_index("task").reindex(tasks)
+            at = x + (k - 0.5) * width
+            ax.bar(at, c["after"].astype(float), width, color=color, label=f"{label}, after")
+            ax.plot(
+                at,
+                c["before"].astype(float),
+                "_",
+                color="k",
+                ms=14,
+                mew=2,
+                label="before" if k == 0 else None,
+            )
+        roles = dict(zip(g["task"], g["role"], strict=False))
+        ax.set_xticks(x, [f"{task.split(' ')[0]}\n{roles[task]}" for task in tasks], fontsize=8)
+        ax.set_yscale("log")
+        ax.set_ylabel(f"mean error norm [{unit}] (log)")
+        ax.grid(axis="y", which="both", alpha=0.3)
+    fig.suptitle(
+        "TO-OSF Scenario #3: T3 (left hand) held 0.2 m beyond what T2 (elbow pose) allows\n"
+        "paper: the strict hierarchy leaves T1/T2 alone; the weighted QP lets T3 pull them",
+        fontsize=10,
+    )
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.02), ncol=3, fontsize=8)
+    fig.subplots_adjust(top=0.82, wspace=0.3)
+    return _save(fig, out, "paper_to_osf_s3")
 
 
 def osf_hqp_table3(t: PaperTable, out: Path) -> list[Path]:
@@ -195,6 +240,7 @@ def rc_lqp_dof(t: PaperTable, out: Path) -> list[Path]:
 FIGURES = {
     "to_osf_s1": to_osf_s1,
     "to_osf_s2": to_osf_s2,
+    "to_osf_s3": to_osf_s3,
     "osf_hqp_table3": osf_hqp_table3,
     "rc_lqp_dof": rc_lqp_dof,
 }

@@ -37,6 +37,7 @@ from wbcbench.report.tables.to_osf import (
     to_osf_pinv,
     to_osf_s1,
     to_osf_s2,
+    to_osf_s3,
     to_osf_s4,
     to_osf_table3,
 )
@@ -60,6 +61,7 @@ TABLES: dict[str, Callable[[Results], PaperTable]] = {
     "to_osf_s1": to_osf_s1,
     "to_osf_pinv": to_osf_pinv,
     "to_osf_s2": to_osf_s2,
+    "to_osf_s3": to_osf_s3,
     "to_osf_s4": to_osf_s4,
     "to_osf_cod_svd": to_osf_cod_svd,
     "to_osf_table3": to_osf_table3,
