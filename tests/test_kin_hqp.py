@@ -2,7 +2,9 @@
 
 Oracles: coal (hpp-fcl) for capsule and box distances, MuJoCo for capsule placements, finite
 differences on the configuration manifold for the distance and gaze Jacobians, and a cascade of
-generic QPs (Clarabel through the solver layer) for the hierarchy with inequalities.
+generic QPs (Clarabel through the solver layer) for the hierarchy with inequalities. The native
+tick is held to the Python reference: its closest points, collision pairs, levels, task terms
+and q̇ on the same states.
 """
 
 from __future__ import annotations
@@ -15,7 +17,13 @@ import pinocchio as pin
 import pytest
 
 from wbcbench import _native
-from wbcbench.controllers.kin_hqp import GazeTask, KinHqp, KinHqpConfig, default_self_pairs
+from wbcbench.controllers.kin_hqp import (
+    GazeTask,
+    GazeTerm,
+    KinHqp,
+    KinHqpConfig,
+    default_self_pairs,
+)
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import WbcBenchError
 from wbcbench.metrics.run_metrics import run_metrics
@@ -40,6 +48,8 @@ from .conftest import random_standing_state
 from .test_native_hls import assert_same
 
 Array = np.ndarray
+
+needs_native = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
 
 
 def controller_for(robot: Robot, scenario: str, **overrides: Any) -> KinHqp:
@@ -109,6 +119,74 @@ def test_parallel_and_degenerate_segments() -> None:
     pa, pb = closest_segment_segment(a0, a1, b0, b1)
     assert np.linalg.norm(pa[0] - pb[0]) == pytest.approx(1.0)
     np.testing.assert_allclose(pb[1], [2.0, 1.0, 0.0])
+
+
+def _segment_pairs(rng: np.random.Generator, P: int) -> tuple[Array, Array, Array, Array]:
+    """Random segment pairs: a quarter general, a half near-parallel (direction off by 1e-14 to
+    1e-2, overlapping or not), then exactly parallel, collinear and degenerate (points) ones."""
+    a0, a1, b0, b1 = (rng.normal(size=(P, 3)) for _ in range(4))
+    for i in range(P // 4, 3 * P // 4):
+        d = a1[i] - a0[i]
+        b0[i] = a0[i] + 0.3 * rng.normal(size=3)
+        b1[i] = b0[i] + d * rng.uniform(-2, 2) + 10.0 ** rng.uniform(-14, -2) * rng.normal(size=3)
+    i = 3 * P // 4
+    off = np.cross(a1[i] - a0[i], rng.normal(size=3))
+    off *= 0.1 / np.linalg.norm(off)
+    b0[i], b1[i] = a0[i] + off, a1[i] + off  # parallel, 0.1 apart
+    b0[i + 1], b1[i + 1] = a1[i + 1] + (a1[i + 1] - a0[i + 1]), a1[i + 1]  # collinear, touching
+    a1[i + 2] = a0[i + 2]  # A a point
+    b1[i + 3] = b0[i + 3]  # B a point
+    a1[i + 4], b1[i + 4] = a0[i + 4], b0[i + 4]  # both points
+    return a0, a1, b0, b1
+
+
+@needs_native
+def test_native_closest_points_equal_the_python_ones() -> None:
+    core = _native._core
+    rng = np.random.default_rng(10)
+    P = 400
+    a0, a1, b0, b1 = _segment_pairs(rng, P)
+    pa, pb = closest_segment_segment(a0, a1, b0, b1)
+    R = np.array([pin.rpy.rpyToMatrix(*rng.normal(size=3)) for _ in range(P)])
+    c, h = rng.normal(size=(P, 3)), rng.uniform(0.05, 0.5, size=(P, 3))
+    h[:10, 0] = 0.0  # flat boxes
+    e1 = a1.copy()
+    e1[10:20] = a0[10:20] + R[10:20, :, 0]  # segments along a box axis (zero slopes)
+    qa, qb = closest_segment_box(a0, e1, c, R, h)
+    for i in range(P):
+        got_a, got_b = core.closest_segment_segment(a0[i], a1[i], b0[i], b1[i])
+        np.testing.assert_allclose(got_a, pa[i], rtol=0, atol=1e-12, err_msg=f"pair {i}")
+        np.testing.assert_allclose(got_b, pb[i], rtol=0, atol=1e-12, err_msg=f"pair {i}")
+        got_a, got_b = core.closest_segment_box(a0[i], e1[i], c[i], R[i], h[i])
+        np.testing.assert_allclose(got_a, qa[i], rtol=0, atol=1e-12, err_msg=f"box {i}")
+        np.testing.assert_allclose(got_b, qb[i], rtol=0, atol=1e-12, err_msg=f"box {i}")
+    # the parallel pair keeps its distance, the touching collinear pair touches
+    assert np.linalg.norm(pa[3 * P // 4] - pb[3 * P // 4]) == pytest.approx(0.1)
+    assert np.linalg.norm(pa[3 * P // 4 + 1] - pb[3 * P // 4 + 1]) <= 1e-12
+
+
+@needs_native
+@pytest.mark.parametrize("scenario", ["rqr_reach", "rqr_stress"])
+def test_native_collision_pairs_equal_the_python_model(comanplus: Robot, scenario: str) -> None:
+    """Distances, gradients and closest points of every pair (self and obstacle) at random
+    configurations, some of them penetrating."""
+    ctrl = controller_for(comanplus, scenario, impl="native")
+    tick = ctrl.native_tick
+    rng = np.random.default_rng(11)
+    penetrating = 0
+    for _ in range(6):
+        q, v = random_standing_state(comanplus, rng, q_noise=0.3)
+        ref = ctrl.collision.evaluate(RobotState(comanplus, q, v))
+        assert tick.run(q, v, 0.0)
+        got = tick.collisions
+        assert got.size == ctrl.collision.n_pairs == len(ref.d)
+        np.testing.assert_allclose(got.d, ref.d, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got.grad, ref.grad, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got.points, ref.points.reshape(-1, 6), rtol=0, atol=1e-12)
+        assert got.min_distance == ref.min_distance
+        penetrating += int(np.sum(ref.d < 0))
+    if scenario == "rqr_stress":
+        assert penetrating > 0, "the states should push capsules into the obstacles"
 
 
 def test_capsules_move_with_their_bodies_as_in_mujoco(comanplus: Robot) -> None:
@@ -316,7 +394,7 @@ def test_baseline_hierarchies_agree_without_inequalities(comanplus: Robot) -> No
         KinHqpConfig(hierarchy="svd")
 
 
-@pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
+@needs_native
 @pytest.mark.parametrize(
     ("scenario", "settings", "jitter"),
     [
@@ -343,8 +421,9 @@ def test_baseline_hierarchies_agree_without_inequalities(comanplus: Robot) -> No
 def test_native_impl_equals_the_python_reference(
     comanplus: Robot, scenario: str, settings: dict[str, Any], jitter: float
 ) -> None:
-    """Same states, the same levels (built in Python by either impl): q̇ to 1e-10 and the same
-    active sets, level by level."""
+    """Same states: the native tick's levels equal the Python build's (to 1e-12), its task
+    terms too, and the hierarchy gives q̇ to 1e-10 and the same active sets, level by level
+    (with the levels built in Python and handed to the native solver, and in the tick)."""
     py = controller_for(comanplus, scenario, impl="python", **settings)
     nat = controller_for(comanplus, scenario, impl="native", **settings)
     assert (py.impl, nat.impl) == ("python", "native")
@@ -362,6 +441,8 @@ def test_native_impl_equals_the_python_reference(
         out_py = py.step(RobotState(comanplus, q, v), t)
         out_nat = nat.step(RobotState(comanplus, q, v), t)
         assert out_py.ok and out_nat.ok, (out_py.message, out_nat.message)
+        _same_levels(nat.native_tick, problem)
+        _same_terms(out_nat.terms, out_py.terms)
         assert out_py.qd is not None and out_nat.qd is not None
         assert np.abs(out_nat.qd - out_py.qd).max() <= 1e-10
         for key, value in out_py.diagnostics.items():
@@ -370,6 +451,39 @@ def test_native_impl_equals_the_python_reference(
         assert out_nat.timings["solve_internal"] <= out_nat.timings["solve"]
     if settings.get("inequalities", True):
         assert active > 0, "the states should activate inequalities"
+
+
+def _same_levels(tick: Any, problem: Any) -> None:
+    """The native tick's last levels and root map against the Python build of the same state."""
+    np.testing.assert_allclose(tick.root_map, problem.T, rtol=0, atol=1e-12)
+    levels = tick.levels()
+    assert [lv[0] for lv in levels] == [lv.name for lv in problem.levels]
+    assert (tick.n_eq, tick.n_ineq, tick.n_task) == (problem.n_eq, problem.n_ineq, problem.n_task)
+    for (name, A, b, C, lo, hi, damping, has_task, has_ineq), lv in zip(
+        levels, problem.levels, strict=True
+    ):
+        assert (has_task, has_ineq) == (lv.A is not None, lv.C is not None), name
+        assert damping == lv.damping, name
+        if has_task:
+            np.testing.assert_allclose(A, lv.A, rtol=0, atol=1e-12, err_msg=name)
+            np.testing.assert_allclose(b, lv.b, rtol=0, atol=1e-12, err_msg=name)
+        if has_ineq:
+            np.testing.assert_allclose(C, lv.C, rtol=0, atol=1e-12, err_msg=name)
+            np.testing.assert_allclose(lo, lv.l, rtol=0, atol=1e-12, err_msg=name)
+            np.testing.assert_allclose(hi, lv.u, rtol=0, atol=1e-12, err_msg=name)
+
+
+def _same_terms(got: list[Any], ref: list[Any]) -> None:
+    """Task terms of the two impls: the same tasks, Jacobians, errors and (gaze) angles."""
+    assert [t.task.name for t in got] == [t.task.name for t in ref]
+    for g, r in zip(got, ref, strict=True):
+        for part in ("J", "drift", "acc_ref", "error", "error_vel"):
+            np.testing.assert_allclose(
+                getattr(g, part), getattr(r, part), rtol=0, atol=1e-12, err_msg=part
+            )
+        if isinstance(r, GazeTerm):
+            assert isinstance(g, GazeTerm)
+            assert g.angle == pytest.approx(r.angle, abs=1e-12)
 
 
 def test_applies_only_to_kinematic_scenarios() -> None:

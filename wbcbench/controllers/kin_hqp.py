@@ -27,9 +27,13 @@ with ``‖ẋ_d + λ e‖`` optionally capped per task (``speed_limits``; the pa
 ``hierarchy: svd | full_qr`` runs the paper's baselines (Fig. 1) in closed loop; they take
 equality levels only, so they need ``inequalities: false``.
 
-``impl: native`` solves the hierarchy with the C++ mirror of the three algorithms
-(:mod:`wbcbench.qp.hls_native`); the levels are built here, in Python, by either impl, and copied
-into the native solver once per tick.
+``impl: native`` runs the whole tick in C++ (``wbcbench/_native/src/controllers/kin_hqp.cpp``,
+the mirror of :meth:`KinHqp.build` and :meth:`KinHqp.solve`): the Pinocchio pass, the tasks'
+references, the gaze, the root map, the collision pairs (``src/tasks/collision.cpp``, the mirror
+of :mod:`wbcbench.tasks.collision`), the levels written in place into the native hierarchy solver
+(:mod:`wbcbench.qp.hls_native`) and q̇. What the tick needs is handed over once, by
+:meth:`KinHqp.make_native` at start; per tick only (q, v, t) cross. :meth:`KinHqp.build` stays the
+reference formulation, and :meth:`KinHqp.solve` solves its levels with either impl.
 
 A velocity-level controller computes no torque, acceleration or wrench: ``ControlOutput.tau``,
 ``qdd`` and ``wrench`` are zero-size arrays and ``qd`` holds the command.
@@ -39,7 +43,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -47,6 +51,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.spatial import ConvexHull
 
+from wbcbench.controllers import native
 from wbcbench.controllers.base import (
     Controller,
     ControllerConfig,
@@ -59,7 +64,7 @@ from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import SolverError, UnknownNameError, WbcBenchError
 from wbcbench.qp.hls import HlsResult, Level
 from wbcbench.qp.hls_baselines import get_algorithm
-from wbcbench.qp.hls_native import NativeHls
+from wbcbench.qp.hls_native import NativeHls, hls_result
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.schema import Scenario
 from wbcbench.tasks.collision import Box, CollisionModel, CollisionTerms, robot_capsules
@@ -345,6 +350,7 @@ class KinHqp(Controller):
         self.algorithm = "reduced_qr" if cfg.hierarchy == "rqr" else cfg.hierarchy
         self._solve = get_algorithm(self.algorithm)
         self._native: NativeHls | None = NativeHls() if self.impl == "native" else None
+        self.native_tick: Any = None  # made at start(), see make_native()
 
     # -- environment and start --------------------------------------------------------------
 
@@ -353,6 +359,7 @@ class KinHqp(Controller):
         self.collision = CollisionModel(
             self.ctx.robot, self._pairs, self._obstacle_bodies if obstacles else (), obstacles
         )
+        self.native_tick = None  # the next start() hands the new pairs over
 
     def start(self, state: RobotState) -> None:
         super().start(state)
@@ -362,6 +369,62 @@ class KinHqp(Controller):
         if self.ctx.contacts:
             # The feet are held, so their support polygon is fixed for the run.
             self._polygon = support_polygon(state, self.ctx.contacts)
+        if self.impl == "native":
+            self.make_native()
+
+    def make_native(self) -> None:
+        """The native tick, once the tasks, the CoM hold and the support polygon are fixed:
+        the settings, the collision pairs, the gaze and the task levels, handed over once."""
+        cfg, robot = self.config, self.ctx.robot
+        core = native.core()
+        tasks = list(self.ctx.tasks)
+        tick = native.new_tick("KinHqpTick", robot, tasks, list(self.frames))
+        s = core.KinHqpSettings()
+        s.algorithm = getattr(core.HlsAlgorithm, self.algorithm)
+        s.inequalities = cfg.inequalities
+        s.support_foot = cfg.base == "support_foot"
+        s.com = getattr(core.KinCom, cfg.com)
+        s.com_gain, s.com_margin = cfg.com_gain, cfg.com_margin
+        s.joint_limit_gain = cfg.joint_limit_gain
+        s.collision_gain, s.collision_margin = cfg.collision_gain, cfg.collision_margin
+        s.damping = cfg.damping
+        s.q_min = np.asarray(robot.q_min, dtype=float)
+        s.q_max = np.asarray(robot.q_max, dtype=float)
+        s.v_max = np.asarray(self.v_max, dtype=float)
+        s.com0 = self._com0
+        a, b = self._polygon if self._polygon is not None else (np.zeros((0, 2)), np.zeros(0))
+        s.polygon_a, s.polygon_b = a, b
+        s.speed_limits = np.array([cfg.speed_limits.get(t.name, np.inf) for t in tasks])
+        # the frames read by id: the capsules' bodies, then the gaze's frame
+        frames = [cap.frame_id for cap in self.collision.bodies]
+        terms: list[Task] = list(tasks)
+        if self.gaze is not None and cfg.gaze is not None:
+            gaze = core.KinGaze()
+            gaze.on = True
+            gaze.frame = len(frames)
+            gaze.axis = self.gaze.axis
+            gaze.target = np.asarray(self.gaze.target, dtype=float)
+            gaze.gain = cfg.gaze.gain
+            gaze.speed_limit = np.inf if cfg.gaze.speed_limit is None else cfg.gaze.speed_limit
+            s.gaze = gaze
+            frames.append(robot.frame_id(self.gaze.frame))
+            terms.append(self.gaze)
+        _, groups = native.priority_groups(terms)
+        s.task_levels = groups
+        s.task_level_names = ["+".join(terms[i].name for i in group) for group in groups]
+        capsules = []
+        for i, cap in enumerate(self.collision.bodies):
+            spec = core.CapsuleSpec()
+            spec.frame, spec.p0, spec.p1, spec.radius = i, cap.p0, cap.p1, cap.radius
+            capsules.append(spec)
+        boxes = []
+        for box in self.collision.obstacles:
+            spec = core.BoxSpec()
+            spec.center, spec.R, spec.half = box.center, box.R, box.half
+            boxes.append(spec)
+        self_pairs, obstacle_pairs = self.collision.index_pairs
+        tick.configure(s, frames, capsules, self_pairs, boxes, obstacle_pairs)
+        self.native_tick = tick
 
     # -- formulation ------------------------------------------------------------------------
 
@@ -466,59 +529,113 @@ class KinHqp(Controller):
     # -- the step ---------------------------------------------------------------------------
 
     def solve(self, problem: KinematicProblem) -> HlsResult:
-        """Solve the hierarchy with the configured algorithm and impl (raises SolverError)."""
+        """Solve the hierarchy with the configured algorithm and impl (raises SolverError); with
+        ``impl: native`` the levels are copied into the native solver (the native step builds
+        them natively instead)."""
         if self._native is not None:
             self._native.load(problem.levels)
             return self._native.solve(self.algorithm)
         return self._solve(problem.levels)
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
+        if self.impl == "native":
+            return self._step_native(state, t)
         timer = StageTimer(state)
         problem = self.build(state, t)
-        empty = np.zeros(0)
-        diag: dict[str, float] = {
-            "n_eq": float(problem.n_eq),
-            "n_ineq": float(problem.n_ineq),
-            "n_task": float(problem.n_task),
-        }
-        if problem.collisions.d.size:
-            diag["min_distance"] = problem.collisions.min_distance
+        diag = _counts(problem.n_eq, problem.n_ineq, problem.n_task, problem.collisions.d)
         t0 = time.perf_counter()
         try:
             res = self.solve(problem)
         except SolverError as exc:
-            return ControlOutput(
-                tau=empty,
-                qdd=empty,
-                wrench=empty,
-                terms=problem.terms,
-                timings=timer.finish(),
-                qd=np.zeros(state.n),
-                ok=False,
-                message=f"kin_hqp: {exc}",
-                diagnostics=diag,
-            )
-        # solve: the whole call (for the native impl, copying the levels in and the result
-        # out); solve_internal: the algorithm itself, timed inside the module when native
+            return _failed(state.n, problem.terms, timer.finish(), f"kin_hqp: {exc}", diag)
+        # solve: the whole call; solve_internal: the algorithm itself
         timer.solve += time.perf_counter() - t0
         timer.solve_internal += res.time
-        if self._native is not None:
-            timer.solve_native += res.time
-        iterations = 0
-        for lv in res.levels:
-            timer.levels[f"solve.{lv.name}"] = lv.time
-            diag[f"iter.{lv.name}"] = float(lv.iterations)
-            diag[f"active.{lv.name}"] = float(lv.n_active)
-            diag[f"residual.{lv.name}"] = lv.residual
-            iterations += lv.iterations
-        diag["active"] = float(sum(lv.n_active for lv in res.levels))
+        iterations = _level_diagnostics(res, timer, diag)
         return ControlOutput(
-            tau=empty,
-            qdd=empty,
-            wrench=empty,
+            tau=np.zeros(0),
+            qdd=np.zeros(0),
+            wrench=np.zeros(0),
             terms=problem.terms,
             timings=timer.finish(),
             qd=problem.T @ res.x,
             iterations=float(iterations),
             diagnostics=diag,
         )
+
+    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
+        """The same step on the native tick: the timed region is the tick (dynamics, build,
+        solve, q̇); the diagnostics and the task terms for the logs are read after it."""
+        if self.native_tick is None:
+            self.make_native()
+        tick = self.native_tick
+        timer = native.NativeTimer()
+        ok = tick.run(state.q, state.v, t)
+        qd = tick.qd.copy() if ok else np.zeros(state.n)
+        timer.stop()
+        collisions = tick.collisions
+        diag = _counts(tick.n_eq, tick.n_ineq, tick.n_task, collisions.d)
+        terms = native.task_terms(self.ctx.tasks, tick.tasks)
+        if self.gaze is not None:
+            error, zeros = tick.gaze_error.copy(), np.zeros(3)
+            J = tick.gaze_jacobian.copy()
+            terms.append(GazeTerm(self.gaze, J, zeros, zeros, error, zeros, tick.gaze_angle))
+        if not ok:
+            message = f"kin_hqp: {tick.solver.message}"
+            return _failed(state.n, terms, timer.finish(tick), message, diag)
+        res = hls_result(tick.solver, tick.level_names)
+        # the solve stage is the algorithm, timed inside the module (nothing crosses for it)
+        timer.solve += res.time
+        timer.solve_native += res.time
+        timer.solve_internal += res.time
+        iterations = _level_diagnostics(res, timer, diag)
+        return ControlOutput(
+            tau=np.zeros(0),
+            qdd=np.zeros(0),
+            wrench=np.zeros(0),
+            terms=terms,
+            timings=timer.finish(tick),
+            qd=qd,
+            iterations=float(iterations),
+            diagnostics=diag,
+        )
+
+
+def _counts(n_eq: int, n_ineq: int, n_task: int, distances: Array) -> dict[str, float]:
+    """The step's row counts and its smallest collision distance (when it checks pairs)."""
+    diag = {"n_eq": float(n_eq), "n_ineq": float(n_ineq), "n_task": float(n_task)}
+    if distances.size:
+        diag["min_distance"] = float(distances.min())
+    return diag
+
+
+def _level_diagnostics(res: HlsResult, timer: Any, diag: dict[str, float]) -> int:
+    """Per level: ``solve.<level>`` time, iterations, active rows and residual; returns the
+    total iterations."""
+    iterations = 0
+    for lv in res.levels:
+        timer.levels[f"solve.{lv.name}"] = lv.time
+        diag[f"iter.{lv.name}"] = float(lv.iterations)
+        diag[f"active.{lv.name}"] = float(lv.n_active)
+        diag[f"residual.{lv.name}"] = lv.residual
+        iterations += lv.iterations
+    diag["active"] = float(sum(lv.n_active for lv in res.levels))
+    return iterations
+
+
+def _failed(
+    n: int, terms: list[TaskTerm], timings: dict[str, float], message: str, diag: dict[str, float]
+) -> ControlOutput:
+    """A failed step: q̇ = 0 (the runner holds the posture) and why."""
+    empty = np.zeros(0)
+    return ControlOutput(
+        tau=empty,
+        qdd=empty,
+        wrench=empty,
+        terms=terms,
+        timings=timings,
+        qd=np.zeros(n),
+        ok=False,
+        message=message,
+        diagnostics=diag,
+    )

@@ -89,16 +89,7 @@ class NativeHls:
 
     def result(self) -> HlsResult:
         """The last solve as the Python reference returns it (raises SolverError on failure)."""
-        s = self.solver
-        if not s.ok:
-            raise SolverError(s.message)
-        stats = [
-            LevelStats(name, time, it, active, sat, residual, violation, rank, left, x)
-            for name, (time, it, active, sat, residual, violation, rank, left, x) in zip(
-                self._names, s.stats(), strict=True
-            )
-        ]
-        return HlsResult(np.array(s.x), stats, float(s.time))
+        return hls_result(self.solver, self._names)
 
     def solve(
         self,
@@ -111,6 +102,20 @@ class NativeHls:
         """Solve the loaded stack with ``algorithm`` (a name of ``hls_baselines.ALGORITHMS``)."""
         self.run(algorithm, x0, rank_tol, feas_tol, max_iter)
         return self.result()
+
+
+def hls_result(solver: Any, names: Sequence[str]) -> HlsResult:
+    """A native solver's last solve as the Python reference returns it, its levels named
+    ``names`` (raises SolverError on failure)."""
+    if not solver.ok:
+        raise SolverError(solver.message)
+    stats = [
+        LevelStats(name, time, it, active, sat, residual, violation, rank, left, x)
+        for name, (time, it, active, sat, residual, violation, rank, left, x) in zip(
+            names, solver.stats(), strict=True
+        )
+    ]
+    return HlsResult(np.array(solver.x), stats, float(solver.time))
 
 
 def solve_hls_native(

@@ -306,6 +306,15 @@ class CollisionModel:
     def n_pairs(self) -> int:
         return len(self.names)
 
+    @property
+    def index_pairs(self) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
+        """The pairs by index, in the order :meth:`evaluate` lists them: self pairs as
+        (capsule, capsule) and obstacle pairs as (capsule, box), indices into :attr:`bodies`
+        and :attr:`obstacles`."""
+        self_pairs = [(int(a), int(b)) for a, b in zip(self._ia, self._ib, strict=True)]
+        obstacle_pairs = [(int(c), int(k)) for c, k in zip(self._oc, self._ok, strict=True)]
+        return self_pairs, obstacle_pairs
+
     def evaluate(self, state: RobotState) -> CollisionTerms:
         """Distances and gradients of all pairs at ``state`` (P = self + obstacle pairs)."""
         n = state.n

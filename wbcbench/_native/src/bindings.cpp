@@ -14,4 +14,5 @@ NB_MODULE(_core, m) {
   wbcbench::bind_hierarchy(m);
   wbcbench::bind_rc_lqp(m);
   wbcbench::bind_hls(m);
+  wbcbench::bind_kin_hqp(m);
 }

@@ -19,5 +19,6 @@ void bind_hierarchy(nb::module_& m);
 void bind_rc_lqp(nb::module_& m);
 void bind_solvers(nb::module_& m);
 void bind_hls(nb::module_& m);
+void bind_kin_hqp(nb::module_& m);
 
 }  // namespace wbcbench

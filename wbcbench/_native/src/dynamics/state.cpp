@@ -26,7 +26,7 @@ struct RobotDynamics::Impl {
   // data.oYcrb as computeAllTerms leaves it (the composite inertias; computeMinverse
   // overwrites them with the bodies' own)
   decltype(pin::Data::oYcrb) composite;
-  std::vector<pin::FrameIndex> task_ids, contact_ids;
+  std::vector<pin::FrameIndex> task_ids, contact_ids, kinematic_ids;
   std::vector<std::string> contact_names;
   // q, v, a as Pinocchio's own vector type, and a 6×n Jacobian: with these argument types the
   // calls below use libpinocchio_default's precompiled algorithms (other types would
@@ -75,6 +75,20 @@ RobotDynamics::RobotDynamics(const std::string& model,
 }
 
 RobotDynamics::~RobotDynamics() = default;
+
+void RobotDynamics::set_kinematic_frames(const std::vector<int>& frame_ids) {
+  const pin::Model& m = impl_->model;
+  impl_->kinematic_ids.clear();
+  for (int id : frame_ids) {
+    if (id < 0 || id >= static_cast<int>(m.nframes))
+      throw std::out_of_range("frame id " + std::to_string(id) + " out of range [0, " +
+                              std::to_string(m.nframes) + ")");
+    impl_->kinematic_ids.push_back(static_cast<pin::FrameIndex>(id));
+  }
+  J_kin_.assign(frame_ids.size(), Matrix::Zero(6, m.nv));
+  p_kin_.assign(frame_ids.size(), Vector::Zero(3));
+  R_kin_.assign(frame_ids.size(), Matrix::Identity(3, 3));
+}
 
 int RobotDynamics::nq() const { return impl_->model.nq; }
 int RobotDynamics::nv() const { return impl_->model.nv; }
@@ -175,6 +189,15 @@ double RobotDynamics::update(const Eigen::Ref<const Vector>& q_in,
     pin::getFrameJacobian(m, d, fid, pin::LOCAL, impl_->jacobian);
     J_contact_.middleRows(6 * i, 6) = impl_->jacobian;
     dJv_contact_.segment(6 * i, 6) = pin::getFrameAcceleration(m, d, fid, pin::LOCAL).toVector();
+  }
+
+  for (size_t i = 0; i < impl_->kinematic_ids.size(); ++i) {
+    const auto fid = impl_->kinematic_ids[i];
+    impl_->jacobian.setZero();
+    pin::getFrameJacobian(m, d, fid, pin::LOCAL_WORLD_ALIGNED, impl_->jacobian);
+    J_kin_[i] = impl_->jacobian;
+    p_kin_[i] = d.oMf[fid].translation();
+    R_kin_[i] = d.oMf[fid].rotation();
   }
  
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

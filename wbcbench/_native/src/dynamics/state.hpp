@@ -47,6 +47,15 @@ class RobotDynamics {
   const Matrix& task_rotation(int i) const { return R_task_.at(i); }  // (3, 3) world
   const Matrix& contact_jacobian() const { return J_contact_; }      // (6c, nv)
   const Vector& contact_drift() const { return dJv_contact_; }       // (6c,)
+  // Frames given by Pinocchio id rather than by name (a body that a site of the same name
+  // would shadow, as RobotState.placement(frame_id) and RobotState.jacobian(frame_id) read
+  // them), whose world placement and world-aligned Jacobian every update() computes (no
+  // drift). Set-up only: sizes the buffers.
+  void set_kinematic_frames(const std::vector<int>& frame_ids);
+  int n_kinematic_frames() const { return static_cast<int>(J_kin_.size()); }
+  const Matrix& kinematic_jacobian(int i) const { return J_kin_.at(i); }  // (6, nv)
+  const Vector& kinematic_position(int i) const { return p_kin_.at(i); }  // (3,) world
+  const Matrix& kinematic_rotation(int i) const { return R_kin_.at(i); }  // (3, 3) world
   // whether update() also computes M⁻¹ (on by default; controllers that never read it turn
   // it off, as RobotState computes it only when asked)
   void set_inverse(bool on) { with_inverse_ = on; }
@@ -83,6 +92,8 @@ class RobotDynamics {
   std::vector<Matrix> J_task_;
   std::vector<Vector> dJv_task_, p_task_;
   std::vector<Matrix> R_task_;
+  std::vector<Matrix> J_kin_, R_kin_;
+  std::vector<Vector> p_kin_;
   bool with_inverse_ = true;
 };
 

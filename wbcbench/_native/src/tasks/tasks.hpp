@@ -35,6 +35,7 @@ class TaskSet {
   int rows() const { return rows_; }
   int offset(int i) const { return offsets_.at(i); }
   int dim(int i) const { return static_cast<int>(specs_.at(i).rows.size()); }
+  const TaskSpec& spec(int i) const { return specs_.at(i); }
 
   // Every task at (q, v, t) with the dynamics of that state; allocates nothing.
   void evaluate(const RobotDynamics& dyn, const Eigen::Ref<const Vector>& q,
