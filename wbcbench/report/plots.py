@@ -274,7 +274,7 @@ def solver_figures(res: Results, out: Path) -> list[Path]:
     s = s.assign(label=s["tier"] + " · " + s["mode"])
     for value, name, ylabel, logy in (
         ("success [%]", "solvers_success", "valid solutions [%]", False),
-        ("wall sgm [µs]", "solvers_time", "shifted geometric mean of solve time [µs] (log)", True),
+        ("wall sgm [µs]", "solvers_time", "solve time, shifted\ngeometric mean [µs] (log)", True),
     ):
         pivot = s.pivot_table(index="solver", columns="label", values=value, aggfunc="first")
         fig, ax = plt.subplots(figsize=(max(7, 0.6 * len(pivot) + 4), 3.8))
@@ -282,7 +282,13 @@ def solver_figures(res: Results, out: Path) -> list[Path]:
         ax.set_ylabel(ylabel)
         ax.set_xlabel("solver")
         ax.set_title("QP solvers on whole-body-control problems", fontsize=10)
-        ax.legend(fontsize=6, ncol=3, title="tier · mode", title_fontsize=7)
+        ax.legend(
+            fontsize=7,
+            title="tier · mode",
+            title_fontsize=7,
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+        )
         paths += _save(fig, out, name)
     return paths
 
