@@ -454,3 +454,36 @@ def test_each_papers_key_figure_is_drawn_from_its_table(tmp_path: Path) -> None:
     names = {p.name for p in write_paper_figures(folder)}
     for table in FIGURES:
         assert f"paper_{table}.png" in names and f"paper_{table}.svg" in names
+
+
+def test_timing_picks_pair_runs_of_one_solver_tier_mode_and_impl() -> None:
+    """hqp was timed with qpOASES and DAQP, osf_hqp with DAQP only: a ratio between them must
+    divide DAQP by DAQP (the paper's qpOASES is preferred only where it covers both)."""
+    from wbcbench.report.tables import _pick_timing
+
+    def row(rid: str, controller: str, solver: str, mode: str = "hot") -> dict:
+        return dict(
+            run_id=rid,
+            scenario="lee2021iros_table1",
+            scenario_hash="h",
+            robot="tocabi_like",
+            controller=controller,
+            controller_config='{"impl": "native"}',
+            impl="native",
+            solver=solver,
+            tier="default",
+            mode=mode,
+        )
+
+    runs = pd.DataFrame(
+        [
+            row("a", "hqp", "qpoases"),
+            row("b", "hqp", "daqp"),
+            row("c", "osf_hqp", "daqp"),
+            row("d", "osf_hqp", "daqp", mode="cold"),
+        ]
+    )
+    picked = _pick_timing(runs, "qpoases")
+    assert sorted(picked["run_id"]) == ["b", "c"]
+    both = pd.concat([runs, pd.DataFrame([row("e", "osf_hqp", "qpoases")])])
+    assert sorted(_pick_timing(both, "qpoases")["run_id"]) == ["a", "e"]

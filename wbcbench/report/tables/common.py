@@ -5,6 +5,7 @@ from __future__ import annotations
 import fnmatch
 import json
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
@@ -17,6 +18,7 @@ from wbcbench.report import papers as P
 from wbcbench.report.load import Results
 
 MODE_ORDER = ("hot", "warm", "cold")
+TIER_ORDER = ("default", "mid", "high", "low")
 
 
 @dataclass
@@ -114,31 +116,36 @@ def _pick_timing(
     runs: pd.DataFrame, paper_solver: str, recorder: str | None = None
 ) -> pd.DataFrame:
     """One timing run per (scenario, robot, controller, config), all of one impl (see
-    :func:`_one_impl`): paper's solver, else the default; with ``recorder``, runs that replay
-    that controller's recording first."""
+    :func:`_one_impl`) and one solver × tier × mode, so that no ratio between two of them mixes
+    settings. The setting is the one with runs for the most of those keys; among equals the
+    paper's solver, else the default, then tier ``default`` and hot before warm before cold.
+    With ``recorder``, runs that replay that controller's recording come first."""
     from wbcbench.bench.sweep import default_solver
 
     runs = _one_impl(runs)
     if runs.empty:
         return runs
-    prefer = [paper_solver.lower(), default_solver()]
-
-    def rank(row: pd.Series) -> tuple[int, int, int]:
-        r = 0 if recorder is None or _recorder(row) == recorder else 1
-        s = prefer.index(row["solver"]) if row["solver"] in prefer else len(prefer)
-        m = MODE_ORDER.index(row["mode"]) if row["mode"] in MODE_ORDER else 3
-        return (r, s, m)
-
-    ranks: list[Any] = [rank(r) for _, r in runs.iterrows()]
-    runs = runs.assign(_rank=ranks)
-    if "scenario_hash" not in runs.columns:
-        runs = runs.assign(scenario_hash="")
-    if "robot" not in runs.columns:
-        runs = runs.assign(robot="")
-    runs = runs.sort_values("_rank", kind="stable")
+    for column, value in (("scenario_hash", ""), ("robot", ""), ("tier", "default")):
+        filled = runs[column].fillna(value) if column in runs.columns else value
+        runs = runs.assign(**{column: filled})
     runs = runs.assign(_config=[_config(r) for _, r in runs.iterrows()])
     key = ["scenario", "scenario_hash", "robot", "controller", "_config"]
-    return runs.drop_duplicates(key).drop(columns=["_rank", "_config"])
+    prefer = [paper_solver.lower(), default_solver()]
+
+    def order(value: str, choices: Sequence[str]) -> int:
+        return choices.index(value) if value in choices else len(choices)
+
+    def setting_rank(item: tuple[Any, pd.DataFrame]) -> tuple[int, int, int, int]:
+        (solver, tier, mode), group = item
+        covered = len(group.drop_duplicates(key))
+        return (-covered, order(solver, prefer), order(tier, TIER_ORDER), order(mode, MODE_ORDER))
+
+    _, chosen = min(runs.groupby(["solver", "tier", "mode"]), key=setting_rank)
+    if recorder is not None:
+        first = [0 if _recorder(r) == recorder else 1 for _, r in chosen.iterrows()]
+        chosen = chosen.assign(_first=first).sort_values("_first", kind="stable")
+        chosen = chosen.drop(columns=["_first"])
+    return chosen.drop_duplicates(key).drop(columns=["_config"])
 
 
 @cache
