@@ -616,6 +616,12 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
             for c, own in ((c, controller_class(c).own_solver) for c, _ in controllers)
         }
 
+        for controller, explicit in controllers:
+            own = controller_class(controller).own_solver
+            if own and explicit and matrix.solvers != ["default"]:
+                not_applicable.append(
+                    f"{key} · {controller}: solves with its own {own}; solvers do not apply"
+                )
         robots = _robot_overrides(matrix, file, key)
         combos = [
             (robot, variant, f"{key}.robots[{r}]" if robot else f"{key}.variants[{v}]")
@@ -644,10 +650,6 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                 if matrix.wall_limit_s is not None:
                     options["wall_limit_s"] = matrix.wall_limit_s
                 for controller, explicit in controllers:
-                    own = controller_class(controller).own_solver
-                    note = f"{key} · {controller}: solves with its own {own}; solvers do not apply"
-                    if own and matrix.solvers != ["default"] and note not in not_applicable:
-                        not_applicable.append(note)
                     reason = controller_class(controller).applies_to(loaded.spec)
                     if reason:
                         if explicit:
