@@ -487,3 +487,24 @@ def test_timing_picks_pair_runs_of_one_solver_tier_mode_and_impl() -> None:
     assert sorted(picked["run_id"]) == ["b", "c"]
     both = pd.concat([runs, pd.DataFrame([row("e", "osf_hqp", "qpoases")])])
     assert sorted(_pick_timing(both, "qpoases")["run_id"]) == ["a", "e"]
+
+
+def test_fig1_verdict_counts_a_baseline_within_five_percent_as_a_tie() -> None:
+    """At N = 10 SVD is 1.4 % faster than the reduced QR: a tie, not a reversal; SVD is the
+    slowest only from N = 40 on, so the verdict is partly."""
+    from wbcbench.report.verdicts import _fig1
+
+    frame = pd.DataFrame(
+        {
+            "N": [10, 40, 100],
+            "full_qr / reduced_qr (native)": [1.73, 2.45, 2.80],
+            "svd / reduced_qr (native)": [0.986, 2.51, 2.95],
+        }
+    )
+    ours, verdict, reason = _fig1(frame)
+    assert verdict == "partly"
+    assert "fastest at every N (yes; ties, N = 10: SVD within 1.4 %)" in reason
+    assert "SVD slowest (from N = 40 on)" in reason
+    assert ours == "full 2.8×, SVD 3× at N = 100 (native)"
+    frame["svd / reduced_qr (native)"] = [0.90, 2.51, 2.95]  # 10 % faster: a reversal
+    assert _fig1(frame)[1] == "not"
