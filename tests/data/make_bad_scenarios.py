@@ -141,6 +141,14 @@ def contact_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
             setter(("contacts", 0, "cop"), {"x": [0.1, -0.1], "y": [-0.05, 0.05]}, f"{k}.cop.x"),
         ),
         (
+            "contact_geometry_unknown",
+            setter(("contacts", 0, "contact_geometry"), "mesh", f"{k}.contact_geometry"),
+        ),
+        (
+            "contact_geometry_not_a_name",
+            setter(("contacts", 0, "contact_geometry"), {"box": True}, f"{k}.contact_geometry"),
+        ),
+        (
             "duplicate_contact",
             lambda r: (
                 r["contacts"].append(copy.deepcopy(r["contacts"][0]))

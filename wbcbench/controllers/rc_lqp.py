@@ -456,7 +456,9 @@ class RcLqp(Controller):
         masks = []
         for s in (state, generic_state(state)):
             red = self.reduced.compute(s, fixed_base=False)
-            masks.append({t.task.name: red.reducible_rows(t.J) for t in self.evaluate_tasks(s, 0.0)})
+            masks.append(
+                {t.task.name: red.reducible_rows(t.J) for t in self.evaluate_tasks(s, 0.0)}
+            )
         lqp1, lqp2 = {}, {}
         for task in self.ctx.tasks:
             mask = masks[0][task.name] & masks[1][task.name]

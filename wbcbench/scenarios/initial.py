@@ -113,10 +113,13 @@ def initial_joints(loaded: Any, robot: Any) -> dict[str, float]:
 
 
 def grounded_configuration(
-    robot: Any, joints: dict[str, float], contact_frames: list[str]
+    robot: Any, joints: dict[str, float], contact_frames: list[str], box_frames: Any = ()
 ) -> np.ndarray:
     """q (nq,) with ``joints`` set (the rest at zero) and the base upright above the origin, at
-    the height that puts the lowest contact frame (the lowest body when none) at z = 0."""
+    the height where the feet touch the floor: the geometry welded to the contact frames, or
+    the frame itself for those in ``box_frames`` (simulated as a sole box whose bottom face is
+    the frame's x–y plane) and for feet without geometry (the lowest body when there is no
+    contact frame)."""
     q = pin.neutral(robot.pin_model)
     q[:7] = [0, 0, 0, 0, 0, 0, 1]
     for name, value in joints.items():
@@ -128,8 +131,13 @@ def grounded_configuration(
     else:
         heights = [data.oMi[i].translation[2] for i in range(1, robot.pin_model.njoints)]
     q[2] = -float(min(heights))
-    if contact_frames:
-        q[2] -= floor_gap(robot, q, contact_frames)
+    model_frames = [f for f in contact_frames if f not in box_frames]
+    if model_frames:
+        # the frames of box feet are at their height above the floor; the others' geometry
+        box_gap = [
+            h + q[2] for f, h in zip(contact_frames, heights, strict=True) if f in box_frames
+        ]
+        q[2] -= min([floor_gap(robot, q, model_frames), *box_gap])
     return q
 
 
@@ -183,5 +191,6 @@ def initial_state(loaded: Any, robot: Any) -> tuple[np.ndarray, np.ndarray]:
         q, v = robot.keyframe(spec.initial.keyframe)
         return q.copy(), v.copy()
     joints = initial_joints(loaded, robot)
-    q = grounded_configuration(robot, joints, [c.frame for c in spec.contacts])
+    boxes = {c.frame for c in spec.contacts if c.contact_geometry == "box"}
+    q = grounded_configuration(robot, joints, [c.frame for c in spec.contacts], boxes)
     return q, np.zeros(robot.nv)

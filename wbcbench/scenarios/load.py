@@ -297,7 +297,10 @@ def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
     try:
         raw = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ScenarioError(file, "", f"not valid YAML: {exc}") from None
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ScenarioError(file, "", f"not valid YAML{where}: {problem}") from None
     except RecursionError:
         raise ScenarioError(file, "", f"nested too deeply to be {what}") from None
     if not isinstance(raw, dict):
@@ -459,6 +462,17 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
                 f"the robot has no sole size for frame {c.frame!r}: give "
                 "'cop: {x: [min, max], y: [min, max]}' [m] in the contact frame",
             )
+        if c.contact_geometry == "box":
+            from wbcbench.robots.loader import frame_body
+
+            if frame_body(robot.mj_model, c.frame) <= 0:
+                raise ScenarioError(
+                    file,
+                    f"contacts[{i}].contact_geometry",
+                    f"frame {c.frame!r} is neither a body nor a site of the simulated model, so "
+                    "no sole box can be placed at it; valid choices: 'model' (the model's own "
+                    "geometry), or 'box' on a frame that is a link, body or site of the file",
+                )
     if spec.initial.source != "keyframe":
         from wbcbench.scenarios.initial import initial_joints
 
@@ -574,6 +588,17 @@ def build_tasks(spec: Scenario, robot: Any) -> list[Task]:
 
 def build_contacts(spec: Scenario, robot: Any) -> list[PlaneContact]:
     return [build_contact(c, robot) for c in spec.contacts]
+
+
+def sole_boxes(spec: Scenario, robot: Any) -> dict[str, tuple[float, float, float, float]]:
+    """Contact frame → sole box (x_min, x_max, y_min, y_max [m]) of every contact that says
+    ``contact_geometry: box``: its CoP box, the same rectangle the controllers use."""
+    boxes = {}
+    for c in spec.contacts:
+        if c.contact_geometry == "box":
+            pc = build_contact(c, robot)
+            boxes[c.frame] = (*pc.x_range, *pc.y_range)
+    return boxes
 
 
 def build_contact(c: ContactSpec, robot: Any) -> PlaneContact:

@@ -189,6 +189,11 @@ class ContactSpec(Strict):
     facets: int = Field(4, ge=3, le=64, description="edges of the friction pyramid")
     mu_yaw: float | None = Field(None, gt=0)
     cop: CopBox | None = None
+    contact_geometry: Literal["model", "box"] = Field(
+        "model",
+        description="what the simulation's foot is: the model's own geometry, or the sole box "
+        "(the cop box, or the robot's sole size) at the contact frame in its place",
+    )
 
 
 class LimitsSpec(Strict):
