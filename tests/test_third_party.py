@@ -143,3 +143,18 @@ def test_rc_lqp_on_talos_tracks_as_lqp_does(solver: str) -> None:
     log = result.log.arrays()
     for hand in ("l_hand", "r_hand"):
         assert np.mean(log[f"err.{hand}.pos"]) < 1e-4, hand
+
+
+@needs("g1")
+def test_validate_warns_that_g1_holds_its_ankles_above_the_sole(capsys) -> None:
+    from wbcbench.cli import main
+
+    assert main(["validate", "g1_stand_sway"]) == 0
+    warnings = [line for line in capsys.readouterr().out.splitlines() if "warning:" in line]
+    assert len(warnings) == 2
+    assert warnings[0] == (
+        "    warning: contacts[0] ('left_ankle_roll_link') at the initial posture: the foot's "
+        "geometry reaches 35.0 mm below the sole plane (the contact frame's x–y plane, where "
+        "the controllers put the ground): hold a frame in the sole plane, or simulate the foot "
+        "as its sole box ('contact_geometry: box')"
+    )
