@@ -233,3 +233,27 @@ def test_contact_geometry_box_needs_a_frame_of_the_simulated_model(tmp_path: Pat
         f"{bad}: contacts[0].contact_geometry: invalid value 'boxes'; valid choices: 'model' or "
         "'box'"
     )
+
+
+def test_self_collision_exclude_list(tmp_path: Path) -> None:
+    """{exclude: [[a, b], …]} simulates every self-contact but those pairs'; names are checked."""
+    from wbcbench.sim.closed_loop import prepare_model
+
+    loaded = load_scenario(BASE, ("sim.self_collision={exclude: [[L_Knee_link, R_Knee_link]]}",))
+    robot = load_robot(loaded.spec.robot)
+    check_against_robot(loaded, robot)
+    model = prepare_model(robot, loaded)
+    assert model.nexclude == robot.mj_model.nexclude + 1
+    pair = {model.body(int(model.exclude_signature[-1]) >> 16).name,
+            model.body(int(model.exclude_signature[-1]) & 0xFFFF).name}  # fmt: skip
+    assert pair == {"L_Knee_link", "R_Knee_link"}
+    assert error_of(BASE, ("sim.self_collision={exclude: [[L_Knee, R_Knee_link]]}",)).startswith(
+        f"{BASE}: sim.self_collision.exclude[0][0]: unknown body 'L_Knee'; valid choices: "
+    )
+    assert error_of(BASE, ("sim.self_collision={exclude: [[L_Knee_link]]}",)) == (
+        f"{BASE}: sim.self_collision.exclude: item 0: a pair [body, body], got 1 names: "
+        "['L_Knee_link']"
+    )
+    assert error_of(BASE, ("sim.self_collision=3",)) == (
+        f"{BASE}: sim.self_collision: expected true, false or {{exclude: [[body, body], …]}}, got 3"
+    )

@@ -158,3 +158,30 @@ def test_validate_warns_that_g1_holds_its_ankles_above_the_sole(capsys) -> None:
         "the controllers put the ground): hold a frame in the sole plane, or simulate the foot "
         "as its sole box ('contact_geometry: box')"
     )
+
+
+@needs("talos")
+def test_validate_offers_the_exclude_list_of_talos_overlapping_bodies(capsys) -> None:
+    from wbcbench.cli import main
+
+    pairs = (
+        "[leg_left_1_link, leg_left_3_link], [leg_right_1_link, leg_right_3_link], "
+        "[arm_left_5_link, arm_left_7_link], [arm_right_5_link, arm_right_7_link], "
+        "[base_link, torso_2_link]"
+    )
+    assert main(["validate", "talos_stand_sway", "--set", "sim.self_collision=true"]) == 0
+    notes = [line for line in capsys.readouterr().out.splitlines() if "overlap" in line]
+    assert notes == [
+        "    note: at the initial posture 5 pairs of the robot's bodies overlap "
+        "(leg_left_1_link–leg_left_3_link 92.8 mm, leg_right_1_link–leg_right_3_link 92.8 mm, "
+        "arm_left_5_link–arm_left_7_link 44.6 mm, arm_right_5_link–arm_right_7_link 44.6 mm, "
+        "base_link–torso_2_link 0.1 mm); the simulation pushes them apart: set "
+        f"'sim: {{self_collision: {{exclude: [{pairs}]}}}}' to leave those pairs out, or "
+        "'sim: {self_collision: false}' to simulate contacts with the world only"
+    ]
+    excluded = f"sim.self_collision={{exclude: [{pairs}]}}"
+    assert main(["validate", "talos_stand_sway", "--set", excluded]) == 0
+    assert "overlap" not in capsys.readouterr().out
+    loaded = load_scenario("talos_stand_sway", ("duration=0.3", excluded))
+    result = run_closed_loop(loaded, RunSettings(controller="lqp", solver="daqp"))
+    assert result.status == "ok" and result.failures == 0, result.message

@@ -111,7 +111,7 @@ class Robot:
     mimic_joints: dict[str, str] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     #: the MuJoCo spec ``mj_model`` was compiled from (copied, edited and compiled again for
-    #: a simulation that changes the model's geometry, see :func:`sole_box_model`)
+    #: a simulation that changes the model, see :func:`simulation_model`)
     mj_spec: mujoco.MjSpec | None = field(default=None, repr=False)
 
     @property
@@ -195,7 +195,7 @@ def load_robot(
     so are the ``package_dirs`` that ``package://`` mesh paths are looked up in (before the
     installed ``example-robot-data``, see :func:`wbcbench.robots.sources.default_package_dirs`).
     Loaded robots are cached by file and modification time: models are read-only after loading
-    (simulations work on :meth:`Robot.fresh_mj_model` copies).
+    (simulations work on :meth:`Robot.fresh_mj_model` copies or :func:`simulation_model`).
 
     Raises:
         UnknownNameError: a bare name that is not a generated robot.
@@ -451,7 +451,7 @@ def welded_bodies(model: mujoco.MjModel, body: int) -> set[int]:
     return group
 
 
-#: height [m] of the sole box of :func:`sole_box_model` above the sole plane
+#: height [m] of the sole box of :func:`simulation_model` above the sole plane
 SOLE_BOX_HEIGHT = 0.02
 
 
@@ -466,11 +466,17 @@ def frame_in_body(model: mujoco.MjModel, name: str) -> tuple[int, np.ndarray, np
     return frame_body(model, name), np.zeros(3), np.eye(3)
 
 
-def sole_box_model(
-    robot: Robot, soles: dict[str, tuple[float, float, float, float]]
+def simulation_model(
+    robot: Robot,
+    soles: dict[str, tuple[float, float, float, float]],
+    exclude: Sequence[tuple[str, str]] = (),
 ) -> mujoco.MjModel:
-    """``robot``'s MuJoCo model with the foot of each contact frame in ``soles`` simulated as
-    its sole box: the collision geoms of the bodies welded to the frame collide with nothing,
+    """``robot``'s MuJoCo model (a fresh copy) with two edits of a scenario's simulation.
+
+    ``exclude``: pairs of bodies whose contacts with each other are not simulated (MuJoCo's
+    ``<contact><exclude>``).
+
+    ``soles``: the foot of each contact frame is simulated as its sole box: the collision geoms of the bodies welded to the frame collide with nothing,
     and a box (x_min, x_max, y_min, y_max [m] in the frame, :data:`SOLE_BOX_HEIGHT` high)
     whose bottom face lies in the frame's x–y plane takes their place, with the contact
     parameters of the first geom it replaces (MuJoCo's defaults when the feet had none).
@@ -480,6 +486,8 @@ def sole_box_model(
         ModelError: the robot keeps no MuJoCo spec, a frame is not in the MuJoCo model, or the
             edited model does not compile.
     """
+    if not soles and not exclude:
+        return robot.fresh_mj_model()
     if robot.mj_spec is None:
         raise ModelError(f"{robot.path}: no MuJoCo spec kept to edit the feet of")
     m = robot.mj_model
@@ -513,10 +521,12 @@ def sole_box_model(
             quat=quat,
             **contact,
         )
+    for a, b in exclude:
+        spec.add_exclude(bodyname1=a, bodyname2=b)
     try:
         return spec.compile()
     except Exception as exc:
-        raise ModelError(f"{robot.path}: MuJoCo cannot compile the sole boxes: {exc}") from exc
+        raise ModelError(f"{robot.path}: MuJoCo cannot compile the edited model: {exc}") from exc
 
 
 def frame_body(model: mujoco.MjModel, name: str) -> int:

@@ -41,6 +41,8 @@ _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("initial", "settle"), 0.0),
     (("sim", "self_collision"), True),
 )
+# the same for keys of each contact
+_LATER_CONTACT_KEYS: tuple[tuple[str, Any], ...] = (("contact_geometry", "model"),)
 
 
 @dataclass
@@ -65,6 +67,10 @@ class LoadedScenario:
                 owner = owner[key]
             if owner.get(keys[-1]) == default:
                 del owner[keys[-1]]
+        for contact in data["contacts"]:
+            for key, default in _LATER_CONTACT_KEYS:
+                if contact.get(key) == default:
+                    del contact[key]
         text = json.dumps(data, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
@@ -166,6 +172,15 @@ def validation_error(
         return prefix if loc == "(top level)" else f"{prefix}.{loc}"
 
     errors: list[dict[str, Any]] = [dict(e) for e in exc.errors()]
+    # a mapping where true, false or a mapping is valid (sim.self_collision): the mapping's
+    # errors, at the key path without the union members' names
+    members = {"bool", "SelfCollisionSpec"}
+    if any(members & set(map(str, e["loc"])) for e in errors):
+        errors = [
+            {**e, "loc": tuple(p for p in e["loc"] if p not in members)}
+            for e in errors
+            if not (e["type"].startswith("bool") and isinstance(e.get("input"), dict))
+        ] or errors
     first = errors[0]
     message = _message(first, root)
     if len(errors) > 1:
@@ -473,6 +488,21 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
                     "no sole box can be placed at it; valid choices: 'model' (the model's own "
                     "geometry), or 'box' on a frame that is a link, body or site of the file",
                 )
+    bodies = [robot.mj_model.body(b).name for b in range(1, robot.mj_model.nbody)]
+    for i, pair in enumerate(spec.sim.excluded_pairs):
+        for j, body in enumerate(pair):
+            if body not in bodies:
+                raise ScenarioError(
+                    file,
+                    f"sim.self_collision.exclude[{i}][{j}]",
+                    str(UnknownNameError("body", body, bodies)),
+                )
+        if pair[0] == pair[1]:
+            raise ScenarioError(
+                file,
+                f"sim.self_collision.exclude[{i}]",
+                f"a pair of two bodies, got {pair[0]!r} twice (a body never collides with itself)",
+            )
     if spec.initial.source != "keyframe":
         from wbcbench.scenarios.initial import initial_joints
 
