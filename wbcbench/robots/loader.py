@@ -476,10 +476,11 @@ def simulation_model(
     ``exclude``: pairs of bodies whose contacts with each other are not simulated (MuJoCo's
     ``<contact><exclude>``).
 
-    ``soles``: the foot of each contact frame is simulated as its sole box: the collision geoms of the bodies welded to the frame collide with nothing,
-    and a box (x_min, x_max, y_min, y_max [m] in the frame, :data:`SOLE_BOX_HEIGHT` high)
-    whose bottom face lies in the frame's x–y plane takes their place, with the contact
-    parameters of the first geom it replaces (MuJoCo's defaults when the feet had none).
+    ``soles``: the foot of each contact frame is simulated as its sole box: the collision
+    geoms of the bodies welded to the frame collide with nothing, and a box (x_min, x_max,
+    y_min, y_max [m] in the frame, :data:`SOLE_BOX_HEIGHT` high) whose bottom face lies in the
+    frame's x–y plane takes their place, with the contact parameters of the first geom it
+    replaces (MuJoCo's defaults when the feet had none).
     Masses and inertias are the file's either way (inertias are never taken from geoms here).
 
     Raises:
