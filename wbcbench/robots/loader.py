@@ -522,8 +522,8 @@ def simulation_model(
             quat=quat,
             **contact,
         )
-    for a, b in exclude:
-        spec.add_exclude(bodyname1=a, bodyname2=b)
+    for first, second in exclude:
+        spec.add_exclude(bodyname1=first, bodyname2=second)
     try:
         return spec.compile()
     except Exception as exc:
