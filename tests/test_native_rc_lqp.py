@@ -75,10 +75,6 @@ VARIANTS: list[dict[str, Any]] = [
 ]
 #: the backends the variants run on: the active-set ones and an interior-point one
 VARIANT_SOLVERS = ["quadprog", "daqp", "qpoases", "clarabel"]
-#: solver → cases where it runs for minutes on a state in either impl (ProxQP, which has no
-#: time cap, measured 250–340 s on one state of ``single`` and 200 s / 80 s for the four states
-#: of ``double`` / ``dof20``); the rest of its cases run
-SLOW: dict[str, set[str]] = {"proxqp": {"single", "double", "dof20"}}
 #: how far beyond the Python strategies' spread the native answer may lie: qpOASES stops on its
 #: own termination tolerance (≈ 1e-9 relative) rather than at round-off, which on
 #: tocabi_stand_sway moved τ up to 29 times the spread
@@ -145,8 +141,6 @@ def within_limits(ctrl: Any, out: Any) -> bool:
 
 def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
     backend = solver.removeprefix("qpsolvers:")
-    if case in SLOW.get(solver, set()):
-        pytest.skip(f"{backend} runs for minutes on some of these states in either impl")
     # coupling_priority's re-solve of LQP 1 is nearly degenerate: its optimum is not unique, and
     # which one a backend lands on moves with round-off (measured: slacks 5e-3 apart with DAQP,
     # τ 3e-3 apart with quadprog, depending on what the process ran before); there each impl's

@@ -196,3 +196,64 @@ def test_the_readme_scenario_example_validates(tmp_path: Path) -> None:
     loaded = load_scenario(example)
     check_against_robot(loaded, load_scenario_robot(loaded))
     assert loaded.spec.robot == "tocabi_like" and len(loaded.spec.contacts) == 2
+
+
+def test_validate_warns_when_the_sole_box_is_not_under_the_foot(tmp_path: Path, capsys) -> None:
+    from wbcbench.cli import main
+
+    path = variant(
+        tmp_path,
+        "  - {frame: l_sole, mu: 0.5, fmin: 30}",
+        "  - {frame: l_sole, mu: 0.5, fmin: 30, cop: {x: [0.2, 0.4], y: [-0.05, 0.05]}}",
+        "shifted.yaml",
+    )
+    assert main(["validate", str(path)]) == 0
+    warnings = [line for line in capsys.readouterr().out.splitlines() if "warning:" in line]
+    assert warnings == [
+        "    warning: contacts[0] ('l_sole') at the initial posture: the sole box's centre "
+        "(300, 0) mm lies 150 mm outside the footprint of the foot's geometry (its points "
+        "within 5 mm of its lowest): the controllers' CoP limits are not under the simulated "
+        "foot; give the contact's 'cop' in its frame, or 'contact_geometry: box'"
+    ]
+    assert main(["validate", str(BASE)]) == 0
+    assert "warning:" not in capsys.readouterr().out
+
+
+def test_contact_geometry_box_needs_a_frame_of_the_simulated_model(tmp_path: Path) -> None:
+    path = variant(
+        tmp_path,
+        "  - {frame: l_sole, mu: 0.5, fmin: 30}",
+        "  - {frame: l_sole, mu: 0.5, fmin: 30, contact_geometry: box}",
+    )
+    loaded = load_scenario(path)
+    check_against_robot(loaded, load_robot(loaded.spec.robot))  # l_sole is a site: accepted
+    bad = tmp_path / "boxes.yaml"
+    bad.write_text(path.read_text().replace("contact_geometry: box", "contact_geometry: boxes"))
+    assert error_of(bad) == (
+        f"{bad}: contacts[0].contact_geometry: invalid value 'boxes'; valid choices: 'model' or "
+        "'box'"
+    )
+
+
+def test_self_collision_exclude_list(tmp_path: Path) -> None:
+    """{exclude: [[a, b], …]} simulates every self-contact but those pairs'; names are checked."""
+    from wbcbench.sim.closed_loop import prepare_model
+
+    loaded = load_scenario(BASE, ("sim.self_collision={exclude: [[L_Knee_link, R_Knee_link]]}",))
+    robot = load_robot(loaded.spec.robot)
+    check_against_robot(loaded, robot)
+    model = prepare_model(robot, loaded)
+    assert model.nexclude == robot.mj_model.nexclude + 1
+    pair = {model.body(int(model.exclude_signature[-1]) >> 16).name,
+            model.body(int(model.exclude_signature[-1]) & 0xFFFF).name}  # fmt: skip
+    assert pair == {"L_Knee_link", "R_Knee_link"}
+    assert error_of(BASE, ("sim.self_collision={exclude: [[L_Knee, R_Knee_link]]}",)).startswith(
+        f"{BASE}: sim.self_collision.exclude[0][0]: unknown body 'L_Knee'; valid choices: "
+    )
+    assert error_of(BASE, ("sim.self_collision={exclude: [[L_Knee_link]]}",)) == (
+        f"{BASE}: sim.self_collision.exclude: item 0: a pair [body, body], got 1 names: "
+        "['L_Knee_link']"
+    )
+    assert error_of(BASE, ("sim.self_collision=3",)) == (
+        f"{BASE}: sim.self_collision: expected true, false or {{exclude: [[body, body], …]}}, got 3"
+    )

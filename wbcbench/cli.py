@@ -84,8 +84,8 @@ def _load_checked(names: Sequence[str], overrides: Sequence[str] = ()) -> list:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from wbcbench.scenarios.initial import initial_state, self_collisions
-    from wbcbench.scenarios.load import load_scenario_robot
+    from wbcbench.scenarios.initial import initial_state, self_collisions, sole_mismatches
+    from wbcbench.scenarios.load import build_contact, load_scenario_robot
 
     for loaded in _load_checked(args.scenarios, args.set):
         spec = loaded.spec
@@ -96,13 +96,22 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         robot = load_scenario_robot(loaded)
         for note in robot.notes:
             print(f"    note: {note}")
-        overlaps = self_collisions(robot, initial_state(loaded, robot)[0])
+        q0 = initial_state(loaded, robot)[0]
+        contacts = [(build_contact(c, robot), c.contact_geometry) for c in spec.contacts]
+        for _, sentence in sole_mismatches(robot, q0, contacts):
+            print(f"    warning: {sentence}")
+        overlaps = self_collisions(robot, q0)
+        excluded = {frozenset(pair) for pair in spec.sim.excluded_pairs}
+        overlaps = [o for o in overlaps if frozenset(o[:2]) not in excluded]
         if overlaps and spec.sim.self_collision:
             pairs = ", ".join(f"{a}–{b} {1e3 * depth:.1f} mm" for a, b, depth in overlaps)
+            offered = [*spec.sim.excluded_pairs, *(o[:2] for o in overlaps)]
+            listed = ", ".join(f"[{a}, {b}]" for a, b in offered)
             print(
                 f"    note: at the initial posture {len(overlaps)} pairs of the robot's bodies "
                 f"overlap ({pairs}); the simulation pushes them apart: set "
-                "'sim: {self_collision: false}' to simulate contacts with the world only"
+                f"'sim: {{self_collision: {{exclude: [{listed}]}}}}' to leave those pairs out, "
+                "or 'sim: {self_collision: false}' to simulate contacts with the world only"
             )
     return 0
 

@@ -141,6 +141,14 @@ def contact_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
             setter(("contacts", 0, "cop"), {"x": [0.1, -0.1], "y": [-0.05, 0.05]}, f"{k}.cop.x"),
         ),
         (
+            "contact_geometry_unknown",
+            setter(("contacts", 0, "contact_geometry"), "mesh", f"{k}.contact_geometry"),
+        ),
+        (
+            "contact_geometry_not_a_name",
+            setter(("contacts", 0, "contact_geometry"), {"box": True}, f"{k}.contact_geometry"),
+        ),
+        (
             "duplicate_contact",
             lambda r: (
                 r["contacts"].append(copy.deepcopy(r["contacts"][0]))
@@ -205,6 +213,22 @@ def top_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
         ("no_version", deleter(("version",), "version")),
         ("version_two", setter(("version",), 2, "version")),
         ("robot_typo", setter(("robot",), "tocabi_lik", "robot")),
+        (
+            "self_collision_exclude_unknown_body",
+            setter(
+                ("sim", "self_collision"),
+                {"exclude": [["no_such_body", "no_such_body_either"]]},
+                "sim.self_collision.exclude[0][0]",
+            ),
+        ),
+        (
+            "self_collision_exclude_not_a_pair",
+            setter(
+                ("sim", "self_collision"),
+                {"exclude": [["a", "b", "c"]]},
+                "sim.self_collision.exclude",
+            ),
+        ),
         ("duration_nan", setter(("duration",), NAN, "duration")),
         ("duration_inf", setter(("duration",), INF, "duration")),
         ("duration_negative", setter(("duration",), -1.0, "duration")),

@@ -92,10 +92,14 @@ def base_row(
     extra: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The identifying columns of a run row. ``settings`` also keeps what produced it: the
-    scenario's overrides and duration, and when and where it ran."""
+    scenario's overrides and duration, the simulated feet when a contact replaces the model's
+    geometry by its sole box, and when and where it ran."""
+    boxes = {c.frame: c.contact_geometry for c in loaded.spec.contacts}
     info = {
         "overrides": list(loaded.overrides),
         "duration_s": loaded.spec.duration,
+        # the simulated feet, when a contact replaces the model's geometry by its sole box
+        **({"contact_geometry": boxes} if "box" in boxes.values() else {}),
         **(extra or {}),
         "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "host": platform.node(),

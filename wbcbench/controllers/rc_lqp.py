@@ -116,6 +116,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+import pinocchio as pin
 from pydantic import Field
 
 from wbcbench import _native
@@ -204,6 +205,23 @@ class RcLqpConfig(NativeConfig, LexicographicConfig):
         "that is still not met, solve the tick with the full-model LQP (same priorities); or "
         "fail the tick",
     )
+
+
+#: the largest offset [rad] of the joints and of the base's orientation in :func:`generic_state`
+GENERIC_OFFSET = 0.3
+#: seed of those offsets (fixed: the row split of a run does not depend on the process)
+GENERIC_SEED = 0
+
+
+def generic_state(state: RobotState) -> RobotState:
+    """``state`` with every joint and the base's orientation turned by a fixed pseudo-random
+    offset of at most :data:`GENERIC_OFFSET` (velocities kept): a posture with no symmetry
+    the initial one may have, where a property that holds only at special postures fails."""
+    model = state.model
+    dv = np.random.default_rng(GENERIC_SEED).uniform(-GENERIC_OFFSET, GENERIC_OFFSET, model.nv)
+    dv[:3] = 0.0
+    q = pin.integrate(model, state.q, dv)
+    return RobotState(state.robot, q, state.v.copy())
 
 
 #: Tikhonov damping of the preview's least squares, relative to the largest squared singular
@@ -329,6 +347,7 @@ class RcLqp(Controller):
 
     def start(self, state: RobotState) -> None:
         super().start(state)
+        self._rows = self.row_split(state)
         if self.impl == "native":
             self.make_native()
 
@@ -351,6 +370,8 @@ class RcLqp(Controller):
         rc.wrench_tol = cfg.wrench_tol
         rc.infeasible_coupling = getattr(core.InfeasibleCoupling, cfg.infeasible_coupling)
         tick.configure(s, rc)
+        assert self._rows is not None
+        tick.set_row_split([self._rows.lqp1[task.name].tolist() for task in tasks])
         self.native_tick = tick
         handles = [pool.get(tick.handles(i)) for i, pool in enumerate(self.pools)]
         self.native_solve = native.LevelSolve(
@@ -421,14 +442,29 @@ class RcLqp(Controller):
 
     # -- task rows ------------------------------------------------------------------------------
 
-    def _classify(self, red: ReducedModel, terms: list[TaskTerm]) -> _RowSplit:
-        """Rows with J N_r = 0 go to LQP 1, the others to LQP 2 (decided once: structural)."""
+    def row_split(self, state: RobotState) -> _RowSplit:
+        """Rows with J N_r = 0 go to LQP 1, the others to LQP 2 (decided once: structural).
+
+        The test runs at ``state`` and at :func:`generic_state` of it, and a row goes to LQP 1
+        only when it passes at both: J N_r = 0 can hold at one posture by coincidence (TALOS'
+        half-sitting: no chain joint turns the torso about the world x axis while the torso yaw
+        is 0, so that row of the torso orientation passes there and fails once the yaw moves).
+        A row handed to LQP 1 in error is planned on the reduced model with a Jacobian that is
+        wrong as soon as the posture changes, and the chains' preview, which does not see it,
+        then asks for centroidal accelerations LQP 1 does not meet.
+        """
+        masks = []
+        for s in (state, generic_state(state)):
+            red = self.reduced.compute(s, fixed_base=False)
+            masks.append(
+                {t.task.name: red.reducible_rows(t.J) for t in self.evaluate_tasks(s, 0.0)}
+            )
         lqp1, lqp2 = {}, {}
-        for term in terms:
-            mask = red.reducible_rows(term.J)
-            lqp1[term.task.name] = np.flatnonzero(mask)
-            lqp2[term.task.name] = np.flatnonzero(~mask)
-        chain = [t.task.priority for t in terms if lqp2[t.task.name].size]
+        for task in self.ctx.tasks:
+            mask = masks[0][task.name] & masks[1][task.name]
+            lqp1[task.name] = np.flatnonzero(mask)
+            lqp2[task.name] = np.flatnonzero(~mask)
+        chain = [t.priority for t in self.ctx.tasks if lqp2[t.name].size]
         return _RowSplit(lqp1, lqp2, min(chain, default=0))
 
     # -- LQP 1 ----------------------------------------------------------------------------------
@@ -830,7 +866,7 @@ class RcLqp(Controller):
         red = self.reduced.compute(state, fixed_base=cfg.assembly == "paper" or cfg.diagnostics)
         self.last_reduced = red
         if self._rows is None:
-            self._rows = self._classify(red, terms)
+            self._rows = self.row_split(state)
 
         # the chains' centroidal accelerations: a level of LQP 1 (priority) or its energy's target
         preview = level = target = None

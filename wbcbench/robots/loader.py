@@ -16,6 +16,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -83,6 +84,7 @@ class Robot:
         act_gear: that actuator's gear (torque = gear · ctrl), (k,).
         keyframe_names: MuJoCo keyframes, in file order.
         mimic_joints: URDF mimic joints, held fixed at their offset (name → master joint).
+        mj_spec: the MuJoCo spec ``mj_model`` was compiled from.
         notes: what loading changed in the file's model, one sentence each (``validate`` prints
             them).
     """
@@ -108,6 +110,9 @@ class Robot:
     _frames: dict[str, int] = field(repr=False)
     mimic_joints: dict[str, str] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    #: the MuJoCo spec ``mj_model`` was compiled from (copied, edited and compiled again for
+    #: a simulation that changes the model, see :func:`simulation_model`)
+    mj_spec: mujoco.MjSpec | None = field(default=None, repr=False)
 
     @property
     def k(self) -> int:
@@ -190,7 +195,7 @@ def load_robot(
     so are the ``package_dirs`` that ``package://`` mesh paths are looked up in (before the
     installed ``example-robot-data``, see :func:`wbcbench.robots.sources.default_package_dirs`).
     Loaded robots are cached by file and modification time: models are read-only after loading
-    (simulations work on :meth:`Robot.fresh_mj_model` copies).
+    (simulations work on :meth:`Robot.fresh_mj_model` copies or :func:`simulation_model`).
 
     Raises:
         UnknownNameError: a bare name that is not a generated robot.
@@ -259,8 +264,9 @@ def _load(source: ModelSource, name: str, info: RobotInfo) -> Robot:
     _check_pinocchio(path, pin_model)
     joint_names = tuple(pin_model.names[i] for i in range(2, pin_model.njoints))
     notes: list[str] = []
-    mj_model = _mujoco_model(source, pin_model, joint_names, notes)
+    mj_model, spec = _mujoco_model(source, pin_model, joint_names, notes)
     robot = _assemble(path, name, info, mj_model, pin_model, joint_names)
+    object.__setattr__(robot, "mj_spec", spec)
     if source.mimic_joints:
         pairs = ", ".join(f"{j} (mimics {m})" for j, m in source.mimic_joints.items())
         notes.insert(0, f"mimic joints held fixed at their offset: {pairs}")
@@ -312,7 +318,7 @@ def _mujoco_spec(source: ModelSource) -> mujoco.MjSpec:
 
 def _mujoco_model(
     source: ModelSource, pin_model: pin.Model, joint_names: tuple[str, ...], notes: list[str]
-) -> mujoco.MjModel:
+) -> tuple[mujoco.MjModel, mujoco.MjSpec]:
     path = source.path
     spec = _mujoco_spec(source)
     # Both libraries must see the file's inertials, not geom-derived ones, and the free joint
@@ -326,7 +332,7 @@ def _mujoco_model(
     if _add_floor(spec):
         notes.append("the file has no floor: a plane at z = 0 was added")
     try:
-        return spec.compile()
+        return spec.compile(), spec
     except Exception as exc:
         if "balanceinertia" not in str(exc) or source.sets_balanceinertia:
             raise ModelError(f"{path}: MuJoCo cannot compile it: {exc}") from exc
@@ -345,7 +351,7 @@ def _mujoco_model(
         stacklevel=2,
     )
     try:
-        return spec.compile()
+        return spec.compile(), spec
     except Exception as exc:
         raise ModelError(f"{path}: MuJoCo cannot compile it: {exc}") from exc
 
@@ -443,6 +449,85 @@ def welded_bodies(model: mujoco.MjModel, body: int) -> set[int]:
         if model.body_jntnum[b] == 0 and int(model.body_parentid[b]) in group:
             group.add(b)
     return group
+
+
+#: height [m] of the sole box of :func:`simulation_model` above the sole plane
+SOLE_BOX_HEIGHT = 0.02
+
+
+def frame_in_body(model: mujoco.MjModel, name: str) -> tuple[int, np.ndarray, np.ndarray]:
+    """(body, position (3,), rotation (3, 3)) of frame ``name`` (a site or a body) in the body
+    that carries it; body −1 when the model has neither."""
+    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+    if sid >= 0:
+        R = np.empty(9)
+        mujoco.mju_quat2Mat(R, model.site_quat[sid])
+        return int(model.site_bodyid[sid]), model.site_pos[sid].copy(), R.reshape(3, 3)
+    return frame_body(model, name), np.zeros(3), np.eye(3)
+
+
+def simulation_model(
+    robot: Robot,
+    soles: dict[str, tuple[float, float, float, float]],
+    exclude: Sequence[tuple[str, str]] = (),
+) -> mujoco.MjModel:
+    """``robot``'s MuJoCo model (a fresh copy) with two edits of a scenario's simulation.
+
+    ``exclude``: pairs of bodies whose contacts with each other are not simulated (MuJoCo's
+    ``<contact><exclude>``).
+
+    ``soles``: the foot of each contact frame is simulated as its sole box: the collision
+    geoms of the bodies welded to the frame collide with nothing, and a box (x_min, x_max,
+    y_min, y_max [m] in the frame, :data:`SOLE_BOX_HEIGHT` high) whose bottom face lies in the
+    frame's x–y plane takes their place, with the contact parameters of the first geom it
+    replaces (MuJoCo's defaults when the feet had none).
+    Masses and inertias are the file's either way (inertias are never taken from geoms here).
+
+    Raises:
+        ModelError: the robot keeps no MuJoCo spec, a frame is not in the MuJoCo model, or the
+            edited model does not compile.
+    """
+    if not soles and not exclude:
+        return robot.fresh_mj_model()
+    if robot.mj_spec is None:
+        raise ModelError(f"{robot.path}: no MuJoCo spec kept to edit the feet of")
+    m = robot.mj_model
+    spec = robot.mj_spec.copy()
+    for frame, (x0, x1, y0, y1) in soles.items():
+        body, p, R = frame_in_body(m, frame)
+        if body <= 0:
+            raise ModelError(f"{robot.path}: MuJoCo has no body or site {frame!r}")
+        contact: dict[str, Any] = {}
+        for b in sorted(welded_bodies(m, body)):
+            for geom in spec.body(m.body(b).name).geoms:
+                if geom.contype or geom.conaffinity:
+                    contact = contact or {
+                        "contype": geom.contype,
+                        "conaffinity": geom.conaffinity,
+                        "condim": geom.condim,
+                        "friction": list(geom.friction),
+                        "solref": list(geom.solref),
+                        "solimp": list(geom.solimp),
+                    }
+                    geom.contype = geom.conaffinity = 0
+        half = np.array([(x1 - x0) / 2, (y1 - y0) / 2, SOLE_BOX_HEIGHT / 2])
+        centre = p + R @ np.array([(x0 + x1) / 2, (y0 + y1) / 2, SOLE_BOX_HEIGHT / 2])
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, R.ravel())
+        spec.body(m.body(body).name).add_geom(
+            name=f"{frame}_sole_box",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=half,
+            pos=centre,
+            quat=quat,
+            **contact,
+        )
+    for first, second in exclude:
+        spec.add_exclude(bodyname1=first, bodyname2=second)
+    try:
+        return spec.compile()
+    except Exception as exc:
+        raise ModelError(f"{robot.path}: MuJoCo cannot compile the edited model: {exc}") from exc
 
 
 def frame_body(model: mujoco.MjModel, name: str) -> int:

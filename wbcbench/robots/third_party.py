@@ -54,6 +54,18 @@ THIRD_PARTY: dict[str, ThirdPartyRobot] = {
         ),
         summary="PAL Robotics TALOS, reduced model with box feet (example-robot-data)",
     ),
+    "talos_mesh": ThirdPartyRobot(
+        distribution=_ERD,
+        uri=f"{_ERD_ROBOTS}/talos_data/robots/talos_reduced.urdf",
+        info=RobotInfo(
+            contact_frames=("left_sole_link", "right_sole_link"),
+            contact_rects={"left_sole_link": _TALOS_SOLE, "right_sole_link": _TALOS_SOLE},
+            hand_frames=("arm_left_7_link", "arm_right_7_link"),
+            base_body="base_link",
+            torso_body="torso_2_link",
+        ),
+        summary="PAL Robotics TALOS, reduced model with its mesh feet (example-robot-data)",
+    ),
     "g1": ThirdPartyRobot(
         distribution=_ERD,
         uri=f"{_ERD_ROBOTS}/g1_description/urdf/g1_29dof_rev_1_0.urdf",

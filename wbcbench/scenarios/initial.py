@@ -113,10 +113,13 @@ def initial_joints(loaded: Any, robot: Any) -> dict[str, float]:
 
 
 def grounded_configuration(
-    robot: Any, joints: dict[str, float], contact_frames: list[str]
+    robot: Any, joints: dict[str, float], contact_frames: list[str], box_frames: Any = ()
 ) -> np.ndarray:
     """q (nq,) with ``joints`` set (the rest at zero) and the base upright above the origin, at
-    the height that puts the lowest contact frame (the lowest body when none) at z = 0."""
+    the height where the feet touch the floor: the geometry welded to the contact frames, or
+    the frame itself for those in ``box_frames`` (simulated as a sole box whose bottom face is
+    the frame's x–y plane) and for feet without geometry (the lowest body when there is no
+    contact frame)."""
     q = pin.neutral(robot.pin_model)
     q[:7] = [0, 0, 0, 0, 0, 0, 1]
     for name, value in joints.items():
@@ -128,8 +131,13 @@ def grounded_configuration(
     else:
         heights = [data.oMi[i].translation[2] for i in range(1, robot.pin_model.njoints)]
     q[2] = -float(min(heights))
-    if contact_frames:
-        q[2] -= floor_gap(robot, q, contact_frames)
+    model_frames = [f for f in contact_frames if f not in box_frames]
+    if model_frames:
+        # the frames of box feet are at their height above the floor; the others' geometry
+        box_gap = [
+            h + q[2] for f, h in zip(contact_frames, heights, strict=True) if f in box_frames
+        ]
+        q[2] -= min([floor_gap(robot, q, model_frames), *box_gap])
     return q
 
 
@@ -149,6 +157,107 @@ def self_collisions(robot: Any, q: np.ndarray) -> list[tuple[str, str, float]]:
         pair = (m.body(b1).name, m.body(b2).name)
         deepest[pair] = max(deepest.get(pair, 0.0), -float(con.dist))
     return sorted(((a, b, depth) for (a, b), depth in deepest.items()), key=lambda x: -x[2])
+
+
+#: points of a foot's geometry within this height [m] of its lowest point make its footprint
+SOLE_BAND = 0.005
+#: how far [m] the sole box's centre may lie outside that footprint, or the foot's lowest point
+#: from the sole plane, before ``validate`` warns
+SOLE_TOLERANCE = 0.005
+
+
+def _geom_points(m: mujoco.MjModel, d: mujoco.MjData, g: int) -> np.ndarray:
+    """Points (p, 3) in the world that bound geom ``g``: a mesh's vertices, else the corners
+    of the geom's own bounding box."""
+    R = d.geom_xmat[g].reshape(3, 3)
+    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH and m.geom_dataid[g] >= 0:
+        mesh = int(m.geom_dataid[g])
+        adr, num = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
+        local = m.mesh_vert[adr : adr + num]
+    else:
+        centre, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        local = centre + signs * half
+    return d.geom_xpos[g] + local @ R.T
+
+
+def _outside(points: np.ndarray, p: np.ndarray) -> float:
+    """How far [m] the 2-D point ``p`` lies outside the convex hull of ``points`` (p, 2); 0
+    inside (a lower bound beyond a vertex; the nearest point for a degenerate hull)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        hull = ConvexHull(points)
+    except (QhullError, ValueError):
+        return float(np.linalg.norm(points - p, axis=1).min())
+    return max(0.0, float((hull.equations[:, :2] @ p + hull.equations[:, 2]).max()))
+
+
+def sole_mismatches(robot: Any, q: np.ndarray, contacts: list[Any]) -> list[tuple[int, str]]:
+    """(contact index, sentence) for each contact simulated with the model's geometry whose sole
+    box does not sit under that geometry at configuration q (nq,): its centre more than
+    :data:`SOLE_TOLERANCE` outside the footprint (the points within :data:`SOLE_BAND` of the
+    foot's lowest point, in the contact frame's x–y plane), or the foot's lowest point more
+    than :data:`SOLE_TOLERANCE` from the sole plane (the frame's x–y plane). Contacts whose
+    bodies have no collision geometry are skipped. ``contacts`` are the scenario's
+    :class:`~wbcbench.tasks.contacts.PlaneContact` objects with their ``contact_geometry``."""
+    from wbcbench.robots.loader import frame_in_body, welded_bodies
+
+    m = robot.mj_model
+    d = mujoco.MjData(m)
+    d.qpos[:], _ = robot.pin_to_mj(q)
+    mujoco.mj_forward(m, d)
+    out: list[tuple[int, str]] = []
+    for i, (contact, geometry) in enumerate(contacts):
+        if geometry != "model":
+            continue
+        body, p_b, R_b = frame_in_body(m, contact.frame)
+        if body <= 0:
+            continue
+        bodies = welded_bodies(m, body)
+        geoms = [
+            g
+            for g in range(m.ngeom)
+            if int(m.geom_bodyid[g]) in bodies and (m.geom_contype[g] or m.geom_conaffinity[g])
+        ]
+        if not geoms:
+            continue
+        R = d.xmat[body].reshape(3, 3) @ R_b
+        origin = d.xpos[body] + d.xmat[body].reshape(3, 3) @ p_b
+        pts = (np.vstack([_geom_points(m, d, g) for g in geoms]) - origin) @ R
+        lowest = float(pts[:, 2].min())
+        centre = np.array(
+            [
+                (contact.x_range[0] + contact.x_range[1]) / 2,
+                (contact.y_range[0] + contact.y_range[1]) / 2,
+            ]
+        )
+        sole = pts[pts[:, 2] <= lowest + SOLE_BAND, :2]
+        off = _outside(sole, centre)
+        where = f"contacts[{i}] ({contact.frame!r}) at the initial posture"
+        if off > SOLE_TOLERANCE:
+            out.append(
+                (
+                    i,
+                    f"{where}: the sole box's centre ({1e3 * centre[0]:.0f}, "
+                    f"{1e3 * centre[1]:.0f}) mm lies {1e3 * off:.0f} mm outside the footprint of "
+                    f"the foot's geometry (its points within {1e3 * SOLE_BAND:.0f} mm of its "
+                    "lowest): the controllers' CoP limits are not under the simulated foot; give "
+                    "the contact's 'cop' in its frame, or 'contact_geometry: box'",
+                )
+            )
+        if abs(lowest) > SOLE_TOLERANCE:
+            side = "below" if lowest < 0 else "above"
+            out.append(
+                (
+                    i,
+                    f"{where}: the foot's geometry reaches {1e3 * abs(lowest):.1f} mm {side} the "
+                    "sole plane (the contact frame's x–y plane, where the controllers put the "
+                    "ground): hold a frame in the sole plane, or simulate the foot as its sole "
+                    "box ('contact_geometry: box')",
+                )
+            )
+    return out
 
 
 def floor_gap(robot: Any, q: np.ndarray, contact_frames: list[str]) -> float:
@@ -183,5 +292,6 @@ def initial_state(loaded: Any, robot: Any) -> tuple[np.ndarray, np.ndarray]:
         q, v = robot.keyframe(spec.initial.keyframe)
         return q.copy(), v.copy()
     joints = initial_joints(loaded, robot)
-    q = grounded_configuration(robot, joints, [c.frame for c in spec.contacts])
+    boxes = {c.frame for c in spec.contacts if c.contact_geometry == "box"}
+    q = grounded_configuration(robot, joints, [c.frame for c in spec.contacts], boxes)
     return q, np.zeros(robot.nv)

@@ -41,6 +41,8 @@ _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("initial", "settle"), 0.0),
     (("sim", "self_collision"), True),
 )
+# the same for keys of each contact
+_LATER_CONTACT_KEYS: tuple[tuple[str, Any], ...] = (("contact_geometry", "model"),)
 
 
 @dataclass
@@ -65,6 +67,10 @@ class LoadedScenario:
                 owner = owner[key]
             if owner.get(keys[-1]) == default:
                 del owner[keys[-1]]
+        for contact in data["contacts"]:
+            for key, default in _LATER_CONTACT_KEYS:
+                if contact.get(key) == default:
+                    del contact[key]
         text = json.dumps(data, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:12]
 
@@ -166,6 +172,15 @@ def validation_error(
         return prefix if loc == "(top level)" else f"{prefix}.{loc}"
 
     errors: list[dict[str, Any]] = [dict(e) for e in exc.errors()]
+    # a mapping where true, false or a mapping is valid (sim.self_collision): the mapping's
+    # errors, at the key path without the union members' names
+    members = {"bool", "SelfCollisionSpec"}
+    if any(members & set(map(str, e["loc"])) for e in errors):
+        errors = [
+            {**e, "loc": tuple(p for p in e["loc"] if p not in members)}
+            for e in errors
+            if not (e["type"].startswith("bool") and isinstance(e.get("input"), dict))
+        ] or errors
     first = errors[0]
     message = _message(first, root)
     if len(errors) > 1:
@@ -297,7 +312,10 @@ def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
     try:
         raw = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ScenarioError(file, "", f"not valid YAML: {exc}") from None
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ScenarioError(file, "", f"not valid YAML{where}: {problem}") from None
     except RecursionError:
         raise ScenarioError(file, "", f"nested too deeply to be {what}") from None
     if not isinstance(raw, dict):
@@ -459,6 +477,32 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
                 f"the robot has no sole size for frame {c.frame!r}: give "
                 "'cop: {x: [min, max], y: [min, max]}' [m] in the contact frame",
             )
+        if c.contact_geometry == "box":
+            from wbcbench.robots.loader import frame_body
+
+            if frame_body(robot.mj_model, c.frame) <= 0:
+                raise ScenarioError(
+                    file,
+                    f"contacts[{i}].contact_geometry",
+                    f"frame {c.frame!r} is neither a body nor a site of the simulated model, so "
+                    "no sole box can be placed at it; valid choices: 'model' (the model's own "
+                    "geometry), or 'box' on a frame that is a link, body or site of the file",
+                )
+    bodies = [robot.mj_model.body(b).name for b in range(1, robot.mj_model.nbody)]
+    for i, pair in enumerate(spec.sim.excluded_pairs):
+        for j, body in enumerate(pair):
+            if body not in bodies:
+                raise ScenarioError(
+                    file,
+                    f"sim.self_collision.exclude[{i}][{j}]",
+                    str(UnknownNameError("body", body, bodies)),
+                )
+        if pair[0] == pair[1]:
+            raise ScenarioError(
+                file,
+                f"sim.self_collision.exclude[{i}]",
+                f"a pair of two bodies, got {pair[0]!r} twice (a body never collides with itself)",
+            )
     if spec.initial.source != "keyframe":
         from wbcbench.scenarios.initial import initial_joints
 
@@ -574,6 +618,17 @@ def build_tasks(spec: Scenario, robot: Any) -> list[Task]:
 
 def build_contacts(spec: Scenario, robot: Any) -> list[PlaneContact]:
     return [build_contact(c, robot) for c in spec.contacts]
+
+
+def sole_boxes(spec: Scenario, robot: Any) -> dict[str, tuple[float, float, float, float]]:
+    """Contact frame → sole box (x_min, x_max, y_min, y_max [m]) of every contact that says
+    ``contact_geometry: box``: its CoP box, the same rectangle the controllers use."""
+    boxes = {}
+    for c in spec.contacts:
+        if c.contact_geometry == "box":
+            pc = build_contact(c, robot)
+            boxes[c.frame] = (*pc.x_range, *pc.y_range)
+    return boxes
 
 
 def build_contact(c: ContactSpec, robot: Any) -> PlaneContact:

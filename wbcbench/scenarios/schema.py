@@ -189,6 +189,11 @@ class ContactSpec(Strict):
     facets: int = Field(4, ge=3, le=64, description="edges of the friction pyramid")
     mu_yaw: float | None = Field(None, gt=0)
     cop: CopBox | None = None
+    contact_geometry: Literal["model", "box"] = Field(
+        "model",
+        description="what the simulation's foot is: the model's own geometry, or the sole box "
+        "(the cop box, or the robot's sole size) at the contact frame in its place",
+    )
 
 
 class LimitsSpec(Strict):
@@ -203,6 +208,22 @@ class LimitsSpec(Strict):
         for name, value in v.items():
             if value <= 0:
                 raise ValueError(f"torque limit of {name!r} must be > 0, got {value}")
+        return v
+
+
+class SelfCollisionSpec(Strict):
+    """Self-collisions simulated but for the listed body pairs (MuJoCo's ``<contact><exclude>``)."""
+
+    exclude: list[list[str]] = Field(
+        default_factory=list, description="pairs of body names whose contacts are not simulated"
+    )
+
+    @field_validator("exclude")
+    @classmethod
+    def _pairs(cls, v: list[list[str]]) -> list[list[str]]:
+        for i, pair in enumerate(v):
+            if len(pair) != 2:
+                raise ValueError(f"item {i}: a pair [body, body], got {len(pair)} names: {pair}")
         return v
 
 
@@ -228,11 +249,24 @@ class SimSpec(Strict):
     max_consecutive_failures: int = Field(
         20, ge=1, description="stop the run after this many failed control ticks in a row"
     )
-    self_collision: bool = Field(
+    self_collision: bool | SelfCollisionSpec = Field(
         True,
         description="simulate contacts between the robot's own bodies (false: the robot's "
-        "geoms touch the world only)",
+        "geoms touch the world only; {exclude: [[body, body], …]}: all but those pairs)",
     )
+
+    @field_validator("self_collision", mode="before")
+    @classmethod
+    def _true_false_or_mapping(cls, v: Any) -> Any:
+        if not isinstance(v, bool | dict | SelfCollisionSpec):
+            raise ValueError(f"expected true, false or {{exclude: [[body, body], …]}}, got {v!r}")
+        return v
+
+    @property
+    def excluded_pairs(self) -> list[tuple[str, str]]:
+        """The body pairs ``self_collision`` leaves out (empty for true and false)."""
+        sc = self.self_collision
+        return [] if isinstance(sc, bool) else [(a, b) for a, b in sc.exclude]
 
 
 class InitialSpec(Strict):

@@ -27,12 +27,13 @@ from wbcbench.controllers.base import ControlOutput
 from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.convert import mj_to_pin, torque_to_ctrl
-from wbcbench.robots.loader import Robot, welded_bodies
+from wbcbench.robots.loader import Robot, simulation_model, welded_bodies
 from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import (
     LoadedScenario,
     check_against_robot,
     load_scenario_robot,
+    sole_boxes,
     torque_limits,
 )
 from wbcbench.sim.setup import WrappingContext, build_controller
@@ -211,7 +212,7 @@ def build_checked_controller(
 def prepare_model(robot: Robot, loaded: LoadedScenario) -> mujoco.MjModel:
     """A copy of the robot's MuJoCo model with the scenario's simulation settings applied."""
     sim = loaded.spec.sim
-    model = robot.fresh_mj_model()
+    model = simulation_model(robot, sole_boxes(loaded.spec, robot), sim.excluded_pairs)
     model.opt.timestep = sim.timestep
     model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{sim.integrator.upper()}")
     if not sim.joint_friction:

@@ -8,6 +8,14 @@ previous result (``WARM_START_WITH_PREVIOUS_RESULT``); the preconditioner is not
 on update (ProxQP's default). Internal time: ``results.info.solve_time`` when
 ``compute_timings`` is on (this backend turns it on unless told otherwise); it covers the solve
 call, not ``init``/``update``.
+
+Cap: ProxQP has no time limit, and 0.8 does not always detect a primal-infeasible QP: on a
+level QP of ``rc_lqp`` (14 variables, 40 inequality rows, H positive semidefinite, infeasible
+for quadprog, DAQP, Clarabel, PIQP and OSQP) it ran to its default 10 000 outer iterations in
+64–119 s, almost all of it after the first 1 000–2 000, where each outer iteration's inner
+loop grows long. Every tier caps the outer iterations at
+:data:`MAX_ITER` (the solves that converge take 5–14 at every tier), so such a solve ends as
+``max_iter`` within a fraction of a second.
 """
 
 from __future__ import annotations
@@ -24,6 +32,9 @@ from wbcbench.qp.problem import Problem
 from wbcbench.qp.solution import Solution, SolutionStatus
 
 LIBRARY = "proxsuite"
+
+#: ProxQP's outer-iteration cap at every tier (its default is 10 000; see the module docstring)
+MAX_ITER = 1000
 
 _STATUS = {
     proxqp.QPSolverOutput.PROXQP_SOLVED: SolutionStatus.SOLVED,
@@ -43,6 +54,10 @@ class ProxQPSolver(QPSolver):
     warm_start = True
     hot_start = True
     internal_time_covers = "solve"
+
+    @staticmethod
+    def tier_caps(tier: str) -> dict[str, Any]:
+        return {"max_iter": MAX_ITER}
 
     @staticmethod
     def tier_settings(tier: str) -> dict[str, Any]:

@@ -41,6 +41,7 @@ void bind_rc_lqp(nb::module_& m) {
                     const std::vector<std::string>&, const SplitSpec&>(),
            nb::arg("model"), nb::arg("task_frames"), nb::arg("contact_frames"), nb::arg("split"))
       .def("configure", &RcLqpTick::configure, nb::arg("settings"), nb::arg("rc"))
+      .def("set_row_split", &RcLqpTick::set_row_split, nb::arg("lqp1_rows"))
       .def(
           "run",
           [](RcLqpTick& tick, ConstVec q, ConstVec v, double t, nb::callable fn,

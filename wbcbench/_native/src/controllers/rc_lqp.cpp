@@ -12,8 +12,6 @@ namespace wbcbench {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-// rows with J N_r = 0 at this tolerance go to LQP 1 (ReducedModel.reducible_rows' default)
-constexpr double kReducibleTol = 1e-9;
 // PREVIEW_DAMPING and PREVIEW_RANK_TOL of the reference
 constexpr double kPreviewDamping = 1e-8;
 constexpr double kPreviewRankTol = 1e-6;
@@ -150,18 +148,22 @@ const QpBuffers& RcLqpTick::slot(int pool, int i) const {
   return hierarchies_.at(pool)->slot(i);
 }
 
-// RcLqp._classify: rows with J N_r = 0 go to LQP 1, the others to LQP 2
-void RcLqpTick::classify() {
-  Eigen::Matrix<bool, Eigen::Dynamic, 1> mask;
+// RcLqp.row_split's result, decided in Python at set-up (the test of J N_r = 0 runs at two
+// postures there): per task, its rows that go to LQP 1; the others go to LQP 2
+void RcLqpTick::set_row_split(const std::vector<std::vector<int>>& lqp1_rows) {
+  if (static_cast<int>(lqp1_rows.size()) != tasks_.size())
+    throw std::invalid_argument("rc_lqp: the row split needs one row list per task");
   chain_priority_ = 0;
   for (size_t g = 0; g < s_.groups.size(); ++g) {
     rows1_[g].clear();
     rows2_[g].clear();
     for (int task : s_.groups[g]) {
       const int o = tasks_.offset(task), m = tasks_.dim(task);
-      mask.resize(m);
-      reduced_.reducible_rows(tasks_.J().middleRows(o, m), kReducibleTol, mask);
-      for (int r = 0; r < m; ++r) (mask(r) ? rows1_[g] : rows2_[g]).push_back(o + r);
+      const std::vector<int>& mine = lqp1_rows[task];
+      for (int r = 0; r < m; ++r) {
+        const bool in1 = std::find(mine.begin(), mine.end(), r) != mine.end();
+        (in1 ? rows1_[g] : rows2_[g]).push_back(o + r);
+      }
     }
     if (!rows2_[g].empty() && chain_priority_ == 0) chain_priority_ = s_.priorities[g];
   }
@@ -586,7 +588,7 @@ bool RcLqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
     return done(false);
   }
   reduced_time_ = reduced_.compute(rc_.assembly == Assembly::kPaper || rc_.diagnostics);
-  if (!classified_) classify();
+  if (!classified_) throw std::logic_error("rc_lqp: run before set_row_split");
   const auto tp = Clock::now();
   prepare_lqp1();  // (the reference builds these inside LQP 1's formulation)
   lqp1_time_ += seconds_since(tp);

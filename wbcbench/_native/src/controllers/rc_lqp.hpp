@@ -63,6 +63,10 @@ class RcLqpTick : public Tick {
   bool run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t,
            LevelSolver& solver);
 
+  // the row split of RcLqp.row_split: per task (the tick's order), the task's rows that go to
+  // LQP 1; set once, before the first run
+  void set_row_split(const std::vector<std::vector<int>>& lqp1_rows);
+
   // solver handles pool `pool` may use (a bound: the level count depends on the row split)
   int handles(int pool) const;
   const QpBuffers& slot(int pool, int i) const;
@@ -111,7 +115,6 @@ class RcLqpTick : public Tick {
     double wrench_residual = 0.0;
   };
 
-  void classify();
   void preview();
   void prepare_lqp1();
   int lqp1_levels(std::vector<PriorityLevel>& levels, bool with_preview);
@@ -139,7 +142,7 @@ class RcLqpTick : public Tick {
   std::vector<int> plain_, uc_, act_plain_, act_uc_;
   Vector tau_max_p_, tau_max_uc_;
 
-  // the row split, decided on the first tick (structural)
+  // the row split, set once from Python (structural)
   bool classified_ = false;
   std::vector<std::vector<int>> rows1_, rows2_;
   int chain_priority_ = 0;
