@@ -115,6 +115,8 @@ def test_mesh_feet_need_the_sole_box_to_stand() -> None:
     loaded = load_scenario("talos_mesh_stand_sway", overrides)
     result = run_closed_loop(loaded, RunSettings(controller="lqp", solver="daqp"))
     assert result.fell
+    assert "the foot is simulated with its mesh" in result.message  # and the fix is named
+    assert "'contact_geometry: box'" in result.message
     loaded = load_scenario("talos_mesh_stand_sway", ("duration=0.3",))
     result = run_closed_loop(loaded, RunSettings(controller="lqp", solver="daqp"))
     assert result.status == "ok" and result.failures == 0, result.message

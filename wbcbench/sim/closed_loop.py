@@ -122,6 +122,13 @@ class ContactSensor:
                 self._site_or_body.append(("body", body))
             self.bodies.append(welded_bodies(model, body))
         self._f6 = np.zeros(6)
+        # feet that touch the world with a mesh (its convex hull in MuJoCo)
+        colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+        meshes = {
+            int(model.geom_bodyid[g])
+            for g in np.flatnonzero(colliding & (model.geom_type == mujoco.mjtGeom.mjGEOM_MESH))
+        }
+        self.mesh_foot = [bool(b & meshes) for b in self.bodies]
 
     def frame_pose(self, data: mujoco.MjData, i: int) -> tuple[np.ndarray, np.ndarray]:
         kind, idx = self._site_or_body[i]
@@ -449,7 +456,13 @@ def _lost_contact(
     for i, frame in enumerate(sensor.frames):
         p, _ = sensor.frame_pose(data, i)
         if np.linalg.norm(p - p0[i]) > slip:
-            return f"contact {frame!r} moved {1e3 * np.linalg.norm(p - p0[i]):.1f} mm"
+            hint = (
+                " (the foot is simulated with its mesh, whose hull may rest on a few points: "
+                "'contact_geometry: box' simulates it as its sole box)"
+                if sensor.mesh_foot[i]
+                else ""
+            )
+            return f"contact {frame!r} moved {1e3 * np.linalg.norm(p - p0[i]):.1f} mm{hint}"
         unloaded[i] = unloaded[i] + 1 if wrench[6 * i + 2] <= 1e-6 else 0
         if unloaded[i] >= LOST_CONTACT_TICKS:
             return f"contact {frame!r} carried no load for {LOST_CONTACT_TICKS} ticks"
