@@ -89,6 +89,35 @@ def test_osf_hqp_table_puts_the_papers_ratio_beside_ours(tmp_path: Path) -> None
     assert frame.loc["T3", "ours OSF-HQP [ms]"] == pytest.approx(0.003)
 
 
+def test_osf_hqp_per_backend_divides_times_of_one_backend(tmp_path: Path) -> None:
+    """qpOASES times both controllers (10×), DAQP both (4×), OSQP only the conventional one:
+    one facet per backend that timed both, and no ratio across backends."""
+    store = ResultsStore(tmp_path)
+    for controller, solver, scale in (
+        ("hqp", "qpoases", 10.0),
+        ("osf_hqp", "qpoases", 1.0),
+        ("hqp", "daqp", 4.0),
+        ("osf_hqp", "daqp", 1.0),
+        ("hqp", "osqp", 2.0),
+    ):
+        rid = f"{controller}-{solver}"
+        row = _timing_row(rid, "lee2021iros_table1", controller, solver=solver)
+        metrics = [
+            dict(run_id=rid, task=f"level{i}", metric="t_solve_mean_us", value=scale * i, unit="us")
+            for i in range(1, 6)
+        ]
+        metrics.append(
+            dict(run_id=rid, task="*", metric="t_solve_mean_us", value=scale * 15, unit="us")
+        )
+        store.add_run(row, metrics)
+    table = TABLES["osf_hqp_backends"](load_results(tmp_path))
+    assert table.frame is not None
+    frame = table.frame.set_index(["backend", "level"])
+    assert set(table.frame["backend"]) == {"qpoases · hot", "daqp · hot"}
+    assert frame.loc[("qpoases · hot", "T3"), "ratio"] == pytest.approx(10.0)
+    assert frame.loc[("daqp · hot", "total"), "ratio"] == pytest.approx(4.0)
+
+
 def test_solver_report_states_machine_versions_and_limitations(smoke: Path) -> None:
     path = write_report(smoke)
     assert path is not None

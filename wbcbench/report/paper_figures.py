@@ -10,6 +10,8 @@ number its table does not:
   with T2, strict hierarchy against weighted QP-WBC (log axes, one facet per unit);
 * ``paper_osf_hqp_table3``: OSF-HQP Table III per level, conventional vs proposed, the paper's
   and ours in two facets (log time axis), with the speed-ups above;
+* ``paper_osf_hqp_backends``: the same per backend × mode that timed both controllers, one facet
+  each;
 * ``paper_rc_lqp_dof``: RC-LQP's gain (conventional / reduced) against the DoF: ours, the
   paper's two published points and the authors' C++ (libdwbc) measured on this project's
   machine; and the absolute medians.
@@ -175,6 +177,47 @@ def osf_hqp_table3(t: PaperTable, out: Path) -> list[Path]:
     return _save(fig, out, "paper_osf_hqp_table3")
 
 
+def osf_hqp_backends(t: PaperTable, out: Path) -> list[Path]:
+    f = t.frame
+    assert f is not None
+    backends = list(dict.fromkeys(f["backend"]))
+    ncols = min(3, len(backends))
+    nrows = -(-len(backends) // ncols)
+    fig, axes = plt.subplots(
+        nrows, ncols, figsize=(4.2 * ncols, 3.4 * nrows), sharey=True, squeeze=False
+    )
+    for ax in axes.ravel()[len(backends) :]:
+        ax.set_visible(False)
+    for ax, backend in zip(axes.ravel(), backends, strict=False):
+        g = f[(f["backend"] == backend) & f["level"].astype(str).str.fullmatch(r"T\d")]
+        x = np.arange(len(g))
+        conv, prop = g["conv. [ms]"].astype(float), g["OSF-HQP [ms]"].astype(float)
+        ax.bar(x - 0.2, conv, 0.4, color=CONVENTIONAL, label="conventional HQP")
+        ax.bar(x + 0.2, prop, 0.4, color=PROPOSED, label="OSF-HQP")
+        for xi, r in zip(x, g["ratio"].astype(float), strict=True):
+            top = max(float(conv.iloc[xi]), float(prop.iloc[xi]))
+            label = f"{r:.0f}×" if r >= 10 else f"{r:.2g}×"
+            ax.annotate(label, (xi, top), ha="center", va="bottom", fontsize=7)
+        ax.set_xticks(x, list(g["level"]))
+        ax.set_yscale("log")
+        total = f[(f["backend"] == backend) & (f["level"] == "total")]
+        ratio = f" (all QPs {float(total['ratio'].iloc[0]):.3g}×)" if len(total) else ""
+        ax.set_title(f"{backend}{ratio}", fontsize=9)
+        ax.grid(axis="y", which="both", alpha=0.3)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("QP time per level [ms] (log)")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2)
+    paper = P.OSF_HQP_TABLE3["conventional"][-1] / P.OSF_HQP_TABLE3["proposed"][-1]
+    fig.suptitle(
+        "OSF-HQP Table III per backend: conventional vs proposed per level "
+        f"(paper, qpOASES: {paper:.3g}× over all QPs)",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    return _save(fig, out, "paper_osf_hqp_backends")
+
+
 def _row(f: pd.DataFrame, level: str) -> pd.Series:
     return f[f["level"].astype(str) == level].iloc[0]
 
@@ -242,6 +285,7 @@ FIGURES = {
     "to_osf_s2": to_osf_s2,
     "to_osf_s3": to_osf_s3,
     "osf_hqp_table3": osf_hqp_table3,
+    "osf_hqp_backends": osf_hqp_backends,
     "rc_lqp_dof": rc_lqp_dof,
 }
 

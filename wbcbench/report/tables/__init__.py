@@ -29,7 +29,7 @@ from wbcbench.report.tables.common import (
     run_spec,
     scenario_spec,
 )
-from wbcbench.report.tables.osf_hqp import osf_hqp_table2, osf_hqp_table3
+from wbcbench.report.tables.osf_hqp import osf_hqp_backends, osf_hqp_table2, osf_hqp_table3
 from wbcbench.report.tables.rc_lqp import RC_LQP_COLUMNS, rc_lqp_dof, rc_lqp_table3
 from wbcbench.report.tables.rqr import rqr_fig1
 from wbcbench.report.tables.to_osf import (
@@ -66,6 +66,7 @@ TABLES: dict[str, Callable[[Results], PaperTable]] = {
     "to_osf_cod_svd": to_osf_cod_svd,
     "to_osf_table3": to_osf_table3,
     "osf_hqp_table3": osf_hqp_table3,
+    "osf_hqp_backends": osf_hqp_backends,
     "osf_hqp_table2": osf_hqp_table2,
     "rc_lqp_table3": rc_lqp_table3,
     "rc_lqp_dof": rc_lqp_dof,

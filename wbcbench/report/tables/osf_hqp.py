@@ -1,4 +1,5 @@
-"""OSF-HQP: Table III (per level, conventional vs proposed) and Table II."""
+"""OSF-HQP: Table III (per level, conventional vs proposed), the same per backend, and
+Table II."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from wbcbench.report.tables.common import (
     _machines,
     _metric,
     _ms,
+    _one_impl,
     _pick_timing,
     _ratio,
     _runs,
@@ -125,6 +127,64 @@ def osf_hqp_table3(res: Results) -> PaperTable:
         "the QP).",
         _machines(res, "osf_hqp"),
         f"Source: {P.OSF_HQP_TABLE3_SOURCE}, §V.",
+    ]
+    return t
+
+
+def osf_hqp_backends(res: Results) -> PaperTable:
+    """Table III's per-level times for every backend × tier × mode that timed both
+    controllers, each ratio within one such setting (and one impl)."""
+    t = PaperTable(
+        "osf_hqp_backends",
+        "OSF-HQP Table III per backend: QP time per level, conventional HQP vs OSF-HQP",
+        "osf_hqp",
+        None,
+    )
+    runs = _runs(res, "timing", "lee2021iros_table1*")
+    if not runs.empty:
+        runs = runs[runs["controller"].isin(["hqp", "osf_hqp"])]
+        runs = _one_impl(runs[[_config(r) == "" for _, r in runs.iterrows()]])
+    rows = []
+    if not runs.empty:
+        runs = runs.assign(tier=runs["tier"].fillna("default") if "tier" in runs else "default")
+        for (solver, tier, mode), group in runs.groupby(["solver", "tier", "mode"]):
+            conv = group[group["controller"] == "hqp"]
+            prop = group[group["controller"] == "osf_hqp"]
+            if conv.empty or prop.empty:
+                continue
+            c, p = conv.iloc[0]["run_id"], prop.iloc[0]["run_id"]
+            lc, lp = _levels(res, c), _levels(res, p)
+            for i, label in enumerate(P.OSF_HQP_LEVELS):
+                if label == "total":
+                    vc, vp = (_metric(res, r, "t_solve_mean_us") for r in (c, p))
+                elif i < len(lc) and i < len(lp):
+                    vc = _metric(res, c, "t_solve_mean_us", lc[i])
+                    vp = _metric(res, p, "t_solve_mean_us", lp[i])
+                else:
+                    continue
+                rows.append(
+                    {
+                        "backend": f"{solver} · {mode}"
+                        + (f" · {tier}" if tier != "default" else ""),
+                        "level": label,
+                        "conv. [ms]": _ms(vc),
+                        "OSF-HQP [ms]": _ms(vp),
+                        "ratio": _ratio(vc, vp),
+                    }
+                )
+    if not rows:
+        t.missing = (
+            "Run timing of `hqp` and `osf_hqp` on `lee2021iros_table1` with the backends to "
+            "compare (`make bench` times daqp, proxqp and osqp)."
+        )
+        return t
+    t.frame = pd.DataFrame(rows)
+    t.notes += [
+        impl_note(runs),
+        f"Paper (qpOASES, C++): all QPs {P.OSF_HQP_TABLE3['conventional'][-1]:.3g} vs "
+        f"{P.OSF_HQP_TABLE3['proposed'][-1]:.3g} ms. Means over the replayed ticks; each row "
+        "divides times of one backend, tier, mode and impl.",
+        _machines(res, "osf_hqp"),
     ]
     return t
 
