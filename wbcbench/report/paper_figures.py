@@ -184,7 +184,7 @@ def osf_hqp_backends(t: PaperTable, out: Path) -> list[Path]:
     ncols = min(3, len(backends))
     nrows = -(-len(backends) // ncols)
     fig, axes = plt.subplots(
-        nrows, ncols, figsize=(4.2 * ncols, 3.4 * nrows), sharey=True, squeeze=False
+        nrows, ncols, figsize=(max(6.0, 4.2 * ncols), 3.4 * nrows + 0.4), sharey=True, squeeze=False
     )
     for ax in axes.ravel()[len(backends) :]:
         ax.set_visible(False)
@@ -210,8 +210,8 @@ def osf_hqp_backends(t: PaperTable, out: Path) -> list[Path]:
     fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2)
     paper = P.OSF_HQP_TABLE3["conventional"][-1] / P.OSF_HQP_TABLE3["proposed"][-1]
     fig.suptitle(
-        "OSF-HQP Table III per backend: conventional vs proposed per level "
-        f"(paper, qpOASES: {paper:.3g}× over all QPs)",
+        "OSF-HQP Table III per backend: conventional vs proposed per level\n"
+        f"(the paper, qpOASES: {paper:.3g}× over all QPs)",
         fontsize=10,
     )
     fig.tight_layout()

@@ -45,6 +45,18 @@ def _label(row: pd.Series) -> str:
     return f"{row['controller']}{cfg} ({row['solver']})"
 
 
+def _labels(rows: list[pd.Series]) -> list[str]:
+    """:func:`_label` of each row, with the simulated duration where two would read the same
+    (e.g. a shortened health check beside the full-length run)."""
+    labels = [_label(r) for r in rows]
+    return [
+        f"{label}, {float(r.get('sim_duration_s', float('nan'))):g} s"
+        if labels.count(label) > 1
+        else label
+        for label, r in zip(labels, rows, strict=True)
+    ]
+
+
 LINESTYLES = ("-", "--", ":", "-.")
 
 
@@ -80,6 +92,7 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
         logs = [(r, lg) for r, lg in logs if not lg.empty]
         if not logs:
             continue
+        labels = _labels([row for row, _ in logs])
         err_cols = sorted({c for _, lg in logs for c in lg.columns if c.startswith("err.")})
         window = _window(res, str(scenario))
         if err_cols:
@@ -88,11 +101,11 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
             )
             for ax, col in zip(axes[:, 0], err_cols, strict=True):
                 task, part = col.split(".")[1:3]
-                for k, (row, lg) in enumerate(logs):
+                for k, ((_, lg), label) in enumerate(zip(logs, labels, strict=True)):
                     if col in lg.columns:
                         d = _thin(lg)
                         y = d[col].where(d[col] > 0)  # a log axis: exact zeros are not drawn
-                        ax.plot(d["t"], y, label=_label(row), lw=1, **_style(k))
+                        ax.plot(d["t"], y, label=label, lw=1, **_style(k))
                 name = task if part == task else f"{task} ({part})"
                 ax.set_ylabel(f"{name}\n[{ERROR_UNITS.get(part, '-')}] (log)", fontsize=8)
                 ax.set_yscale("log")
@@ -106,7 +119,7 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
         if amend:
             fig, ax = plt.subplots(figsize=(8, 3.2))
             k = 0
-            for row, lg in logs:
+            for (_, lg), label in zip(logs, labels, strict=True):
                 d = _thin(lg)
                 for c in amend:
                     if c in d.columns:
@@ -114,7 +127,7 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
                             d["t"],
                             d[c].where(d[c] > 0),
                             lw=1,
-                            label=f"{c.removeprefix('diag.amend.')} — {_label(row)}",
+                            label=f"{c.removeprefix('diag.amend.')} — {label}",
                             **_style(k),
                         )
                         k += 1
