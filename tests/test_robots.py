@@ -268,7 +268,9 @@ def test_keyframe_in_pinocchio_convention() -> None:
 def test_unknown_robot_lists_choices() -> None:
     with pytest.raises(UnknownNameError) as exc:
         load_robot("nao")
-    valid = ", ".join(sorted([*available_robots(), "g1", "talos"]))
+    from wbcbench.robots.third_party import THIRD_PARTY
+
+    valid = ", ".join(sorted([*available_robots(), *THIRD_PARTY]))
     assert str(exc.value) == (
         f"unknown robot 'nao'; valid choices: {valid} (or give a path to an MJCF/URDF file)"
     )
