@@ -604,20 +604,17 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
         check_solver_choices(matrix.solvers, matrix.tiers, matrix.modes, file, key)
         offered, notes = offered_choices(solvers, matrix.tiers, matrix.modes, key)
         not_applicable += notes
-        backend_runs = [
+        backend_runs: list[tuple[str, str, str]] = [
             (solver, tier, mode)
             for solver in solvers
             for tier in matrix.tiers
             for mode in matrix.modes
             if offered[(solver, tier, mode)]
         ]
-        runs_of = {  # a controller that brings its own solver runs once
-            c: [(own, "default", matrix.modes[0])] if own else backend_runs
-            for c, own in ((c, controller_class(c).own_solver) for c, _ in controllers)
-        }
-
+        runs_of: dict[str, list[tuple[str, str, str]]] = {}
         for controller, explicit in controllers:
-            own = controller_class(controller).own_solver
+            own = controller_class(controller).own_solver  # it runs once, with its own solver
+            runs_of[controller] = [(own, "default", matrix.modes[0])] if own else backend_runs
             if own and explicit and matrix.solvers != ["default"]:
                 not_applicable.append(
                     f"{key} · {controller}: solves with its own {own}; solvers do not apply"

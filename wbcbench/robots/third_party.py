@@ -41,29 +41,26 @@ _TALOS_SOLE = ContactRect(-0.1, 0.1, -0.06, 0.06)
 # ankle roll link, 35 mm below its origin: the support rectangle spans those points.
 _G1_SOLE = ContactRect(-0.05, 0.12, -0.025, 0.025)
 
+#: TALOS's frames, the same in its box-foot and mesh-foot files
+_TALOS = RobotInfo(
+    contact_frames=("left_sole_link", "right_sole_link"),
+    contact_rects={"left_sole_link": _TALOS_SOLE, "right_sole_link": _TALOS_SOLE},
+    hand_frames=("arm_left_7_link", "arm_right_7_link"),
+    base_body="base_link",
+    torso_body="torso_2_link",
+)
+
 THIRD_PARTY: dict[str, ThirdPartyRobot] = {
     "talos": ThirdPartyRobot(
         distribution=_ERD,
         uri=f"{_ERD_ROBOTS}/talos_data/robots/talos_reduced_box.urdf",
-        info=RobotInfo(
-            contact_frames=("left_sole_link", "right_sole_link"),
-            contact_rects={"left_sole_link": _TALOS_SOLE, "right_sole_link": _TALOS_SOLE},
-            hand_frames=("arm_left_7_link", "arm_right_7_link"),
-            base_body="base_link",
-            torso_body="torso_2_link",
-        ),
+        info=_TALOS,
         summary="PAL Robotics TALOS, reduced model with box feet (example-robot-data)",
     ),
     "talos_mesh": ThirdPartyRobot(
         distribution=_ERD,
         uri=f"{_ERD_ROBOTS}/talos_data/robots/talos_reduced.urdf",
-        info=RobotInfo(
-            contact_frames=("left_sole_link", "right_sole_link"),
-            contact_rects={"left_sole_link": _TALOS_SOLE, "right_sole_link": _TALOS_SOLE},
-            hand_frames=("arm_left_7_link", "arm_right_7_link"),
-            base_body="base_link",
-            torso_body="torso_2_link",
-        ),
+        info=_TALOS,
         summary="PAL Robotics TALOS, reduced model with its mesh feet (example-robot-data)",
     ),
     "g1": ThirdPartyRobot(
