@@ -92,3 +92,13 @@ def grounded_state(
     v = rng.uniform(-v_noise, v_noise, robot.nv)
     v -= np.linalg.lstsq(Jc, Jc @ v, rcond=None)[0]
     return q, v
+
+
+@pytest.fixture
+def runs_in_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Sweep runs in this process instead of a child of the guard's fork server: for tests whose
+    monkeypatches must reach the run (the fork server's children never see them). The guard
+    itself is tested in ``test_guard.py``."""
+    from wbcbench.bench import guard
+
+    monkeypatch.setattr(guard, "can_guard", lambda: False)

@@ -111,6 +111,7 @@ def test_relative_residuals_of_an_honest_and_a_shifted_answer() -> None:
 
 
 @pytest.mark.parametrize("lie", list(LIES))
+@pytest.mark.usefixtures("runs_in_process")
 def test_wbcbench_run_catches_every_lie(
     tmp_path: Path, lying_daqp: Callable[[str], None], lie: str
 ) -> None:
@@ -144,6 +145,7 @@ timing:
 """
 
 
+@pytest.mark.usefixtures("runs_in_process")
 def test_a_sweep_catches_half_a_newton_metre_on_both_paths(
     tmp_path: Path, lying_daqp: Callable[[str], None]
 ) -> None:

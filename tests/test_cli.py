@@ -61,6 +61,7 @@ def test_replay_solves_a_dumped_problem_again(tmp_path: Path, capsys) -> None:
 TINY_SET = ["--set", "duration=0.05", "--set", "metrics.window=[0.0, 0.05]"]
 
 
+@pytest.mark.usefixtures("runs_in_process")
 def test_sweep_exit_codes_retry_failed_and_force(
     tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
 ) -> None:

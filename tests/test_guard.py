@@ -6,6 +6,7 @@ import os
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -51,16 +52,124 @@ def _guard_a_hang_in_a_daemon(queue) -> None:
 
 def test_a_daemonic_process_guards_its_runs_too() -> None:
     """Dask workers are daemonic processes, which multiprocessing forbids to have children:
-    the guard forks directly."""
+    the guard starts its fork server with subprocess."""
     import multiprocessing as mp
 
-    ctx = mp.get_context("fork")
+    ctx = mp.get_context("spawn")
     queue = ctx.Queue()
     daemon = ctx.Process(target=_guard_a_hang_in_a_daemon, args=(queue,), daemon=True)
     daemon.start()
-    message = queue.get(timeout=60)
+    message = queue.get(timeout=120)
     daemon.join(10)
     assert message.startswith("exceeded the wall-clock guard of 1 s")
+
+
+# -- a library's threads in the caller never reach the guarded child ------------------------
+#
+# A child forked from a process whose native thread pool is running inherits the pool's
+# bookkeeping but not its threads, and waits for them forever. Each case below first makes the
+# library start its pool in this (the caller's) process, then runs the same library guarded.
+
+
+def _clarabel(n: int) -> str:
+    """A dense QP of ``n`` variables with Clarabel's faer solver, which runs on rayon's pool."""
+    import clarabel
+    import scipy.sparse as sp
+
+    rng = np.random.default_rng(0)
+    m = rng.standard_normal((n, n))
+    P = sp.csc_matrix(np.triu(m @ m.T + np.eye(n)))
+    A = sp.csc_matrix(np.vstack([np.eye(n), -np.eye(n)]))
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.direct_solve_method = "faer"
+    cones = [clarabel.NonnegativeConeT(2 * n)]
+    solver = clarabel.DefaultSolver(P, rng.standard_normal(n), A, np.ones(2 * n), cones, settings)
+    return str(solver.solve().status)
+
+
+def _openblas(n: int) -> float:
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(2):
+        a = np.random.default_rng(0).standard_normal((n, n))
+        return float(np.trace(a @ a))
+
+
+def _openmp(batch: int) -> float:
+    """Pinocchio's inverse dynamics over a batch of states on two OpenMP threads."""
+    import pinocchio as pin
+
+    model = pin.buildSampleModelHumanoidRandom()
+    pool = pin.ModelPool(model, 2)
+    q = np.tile(pin.neutral(model)[:, None], (1, batch))
+    v = np.ones((model.nv, batch))
+    tau = np.zeros((model.nv, batch))
+    pin.rneaInParallel(2, pool, q, v, np.zeros_like(v), tau)
+    return float(np.abs(tau).sum())
+
+
+def _mujoco(nthread: int) -> float:
+    """MuJoCo's rollout on its own thread pool."""
+    import mujoco
+    from mujoco import rollout
+
+    xml = "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>"
+    model = mujoco.MjModel.from_xml_string(xml)
+    datas = [mujoco.MjData(model) for _ in range(nthread)]
+    size = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    state = np.zeros((4, size))
+    state[:, 3] = 1.0
+    states, _ = rollout.rollout(model, datas, state, nstep=20)
+    return float(states[:, -1, 3].sum())
+
+
+def _dask(n: int) -> int:
+    import dask
+
+    parts = [dask.delayed(sum)(range(i)) for i in range(n)]
+    return int(sum(dask.compute(*parts, scheduler="threads", num_workers=2)))
+
+
+@pytest.mark.parametrize(
+    ("fn", "arg"),
+    [(_clarabel, 200), (_openblas, 400), (_openmp, 16), (_mujoco, 2), (_dask, 20)],
+    ids=["rayon-clarabel", "openblas", "openmp-pinocchio", "mujoco", "dask-threads"],
+)
+def test_a_threaded_library_in_the_caller_does_not_hang_the_guarded_run(fn, arg) -> None:
+    expected = fn(arg)  # the library's threads now run in this process
+    t0 = time.perf_counter()
+    outcome = call_with_deadline(fn, (arg,), 60)
+    assert outcome.ok, outcome.message
+    assert outcome.value == expected
+    assert time.perf_counter() - t0 < 30
+
+
+def test_the_fork_server_holds_one_thread() -> None:
+    from wbcbench.bench.guard import thread_count
+
+    outcome = call_with_deadline(thread_count, (), 60)
+    assert outcome.ok and outcome.value == 1  # the child of a one-threaded server
+
+
+def test_a_progress_callback_reaches_the_caller() -> None:
+    seen: list[tuple[int, int]] = []
+    outcome = call_with_deadline(_count_slowly, (5,), 60, progress=lambda *a: seen.append(a))
+    assert outcome.ok and outcome.value == 5
+    assert seen and seen[-1] == (5, 5)
+
+
+def _count_slowly(n: int, progress=None) -> int:
+    for i in range(1, n + 1):
+        time.sleep(0.1)
+        progress(i, n)
+    return n
+
+
+def test_arguments_that_do_not_pickle_are_a_failed_outcome() -> None:
+    outcome = call_with_deadline(_square, (lambda: 1,), 30)
+    assert not outcome.ok
+    assert outcome.message.startswith("the run's arguments do not pickle")
 
 
 def test_a_result_within_the_deadline_comes_back() -> None:
@@ -93,12 +202,26 @@ version: 1
 tracking:
   - scenarios: [tocabi_stand_sway]
     controllers: [qp_wbc]
-    solvers: [daqp, quadprog]
+    solvers: [daqp]
+    set: ["duration=0.05", "metrics.window=[0.0, 0.05]"]
+    wall_limit_s: 0.001
+  - scenarios: [tocabi_stand_sway]
+    controllers: [qp_wbc]
+    solvers: [quadprog]
     set: ["duration=0.05", "metrics.window=[0.0, 0.05]"]
 timing:
   - scenarios: [tocabi_stand_sway]
     controllers: [qp_wbc]
-    solvers: [daqp, quadprog]
+    solvers: [daqp]
+    modes: [cold]
+    ticks: 8
+    warmup: 2
+    probe_ticks: 4
+    set: ["duration=0.3"]
+    wall_limit_s: 0.001
+  - scenarios: [tocabi_stand_sway]
+    controllers: [qp_wbc]
+    solvers: [quadprog]
     modes: [cold]
     ticks: 8
     warmup: 2
@@ -107,25 +230,16 @@ timing:
 """
 
 
-def test_a_run_that_hangs_becomes_a_failed_row_and_the_sweep_goes_on(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    from wbcbench.qp.backends.daqp import DAQPSolver
-
-    def hangs(self, problem, guess, keep):
-        time.sleep(3600)
-
-    monkeypatch.setattr(DAQPSolver, "_solve_fresh", hangs)
-    text = SWEEP.replace("tracking:\n  - ", "tracking:\n  - wall_limit_s: 10\n    ")
-    text = text.replace("timing:\n  - ", "timing:\n  - wall_limit_s: 30\n    ")
+def test_a_run_that_hangs_becomes_a_failed_row_and_the_sweep_goes_on(tmp_path: Path) -> None:
+    """The DAQP runs cannot finish within their 1 ms guard: to the guard, a hung run."""
     path = tmp_path / "sweep.yaml"
-    path.write_text(text)
+    path.write_text(SWEEP)
     report = run_sweep(plan_sweep(*load_sweep_file(str(path))), tmp_path / "out",
                        show_progress=False)  # fmt: skip
     runs = pd.read_csv(tmp_path / "out" / "runs.csv").set_index(["kind", "solver"])
     for kind in ("tracking", "timing"):
         hung = runs.loc[(kind, "daqp")]
         assert hung["status"] == "failed"
-        assert "exceeded the wall-clock guard" in hung["message"]
+        assert "exceeded the wall-clock guard of 0.001 s" in hung["message"]
         assert runs.loc[(kind, "quadprog"), "status"] == "ok"
     assert len(report.failed) == 2

@@ -237,6 +237,7 @@ def test_an_interrupted_sweep_resumes_without_losing_or_repeating_rows(tmp_path:
     assert run_sweep(plan(path), interrupted, show_progress=False).computed == 0
 
 
+@pytest.mark.usefixtures("runs_in_process")
 def test_a_solver_that_raises_or_lies_becomes_a_failure_row(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -324,6 +325,7 @@ def test_robots_run_a_scenario_once_per_robot_each_its_own_hash_and_recording(
     assert len(p.timing_by_scenario) == 3
 
 
+@pytest.mark.usefixtures("runs_in_process")
 def test_a_closed_loop_run_rejects_a_qp_reported_solved_that_is_not(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -372,6 +374,7 @@ def test_a_closed_loop_run_rejects_a_qp_reported_solved_that_is_not(
     assert list(log["ok"][:4]) == [0.0, 1.0, 1.0, 0.0]
 
 
+@pytest.mark.usefixtures("runs_in_process")
 def test_a_recorder_that_falls_inside_the_window_hands_over_to_the_next(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -500,21 +503,19 @@ def test_impls_run_each_impl_of_a_native_controller_once_and_a_python_one_once(
 
 
 def test_a_hung_solver_comparison_does_not_hang_the_sweep(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    """A comparison that cannot finish within its 10 ms guard: to the guard, a hung one."""
     import time
 
-    import wbcbench.bench.solver_comparison as solvers
-
-    monkeypatch.setattr(solvers, "run_solver_comparison", lambda *a, **k: time.sleep(600))
     text = (
         "version: 1\nsolver_comparison:\n  scenarios: [tocabi_stand_sway]\n"
-        "  controllers: [qp_wbc]\n  solvers: [daqp]\n  wall_limit_s: 1\n"
+        "  controllers: [qp_wbc]\n  solvers: [daqp]\n  wall_limit_s: 0.01\n"
     )
     t0 = time.perf_counter()
     run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
     assert time.perf_counter() - t0 < 60
-    assert "solver comparison: exceeded the wall-clock guard of 1 s" in capsys.readouterr().out
+    assert "solver comparison: exceeded the wall-clock guard of 0.01 s" in capsys.readouterr().out
 
 
 def test_a_timing_row_records_what_the_machine_was_doing(tmp_path: Path) -> None:

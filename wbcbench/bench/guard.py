@@ -2,24 +2,66 @@
 
 A solver's native loop or a native abort cannot be interrupted from Python inside the process
 that runs it: a hung ``solve()`` holds the interpreter, and ``std::terminate`` ends it. So every
-sweep run executes in a forked child process (it starts in milliseconds with everything the
-parent has loaded: modules, robot caches), and the parent waits for its result until a
-deadline. A child that misses it is killed; one that dies (a signal, an abort) is reported.
-Either way the caller turns the outcome into a ``failed`` row and the sweep goes on.
+sweep run executes in a child process, and the caller waits for its result until a deadline. A
+child that misses it is killed; one that dies (a signal, an abort) is reported. Either way the
+caller turns the outcome into a ``failed`` row and the sweep goes on.
+
+The child never comes from forking the caller. The caller may hold the threads of a native
+library (rayon in Clarabel, OpenBLAS, OpenMP, MuJoCo's or Dask's pools); a forked child inherits
+their locks and bookkeeping but not the threads, and waits for them forever. So each process
+that guards runs starts one *fork server*: a fresh interpreter (``python -m
+wbcbench.bench.guard``), with one BLAS and one OpenMP thread, that imports wbcbench's modules
+and then only forks. It runs no solver code itself, and it checks before every fork that it is
+still single-threaded. A run's child starts in milliseconds with the modules loaded; the server
+costs one interpreter start per guarding process (about 2 s).
+
+The server is started with :mod:`subprocess`, not :mod:`multiprocessing`, so that daemonic
+processes (the workers of a dask cluster, local or remote) guard their runs too: multiprocessing
+forbids them children.
 """
 
 from __future__ import annotations
 
+import atexit
+import importlib
 import os
 import pickle
 import select
 import signal
+import struct
+import subprocess
 import sys
+import tempfile
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
+
+#: modules the fork server imports before its first fork: what the guarded runs call
+PRELOAD = (
+    "wbcbench.bench.runner",
+    "wbcbench.bench.timing",
+    "wbcbench.bench.executors",
+    "wbcbench.bench.sweep",
+    "wbcbench.controllers.registry",
+    "wbcbench.qp.registry",
+)
+
+#: the server's environment: one thread per numerical library, as every run of the project has
+#: (see ``threadpool_limits(1)`` in the CLI and the executors), and no background thread of
+#: Arrow's jemalloc (pandas imports pyarrow), so that importing leaves the server one thread
+SERVER_ENV = {
+    "OPENBLAS_NUM_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "JE_ARROW_MALLOC_CONF": "background_thread:false",
+}
+
+#: how long the fork server may take to import :data:`PRELOAD` [s]
+SERVER_START_S = 300.0
 
 
 @dataclass
@@ -38,11 +80,36 @@ class Guarded:
 
 
 def can_guard() -> bool:
-    """Whether this platform can fork (POSIX): elsewhere runs go unguarded.
-
-    The child is forked directly, not through :mod:`multiprocessing`, so that daemonic
-    processes (the workers of a dask cluster, local or remote) guard their runs too."""
+    """Whether this platform can fork (POSIX): elsewhere runs go unguarded."""
     return hasattr(os, "fork")
+
+
+# -- the child: one run ---------------------------------------------------------------------
+
+
+class ProgressFile:
+    """A ``progress(done, total)`` callback that a guarded child writes to a small file, for the
+    caller to read while it waits (a callback of the caller's own does not cross processes)."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+
+    def __call__(self, done: int, total: int) -> None:
+        fd = os.open(self.path, os.O_WRONLY)
+        try:
+            os.pwrite(fd, struct.pack("qq", done, total), 0)
+        finally:
+            os.close(fd)
+
+    def read(self) -> tuple[int, int] | None:
+        try:
+            data = Path(self.path).read_bytes()
+        except OSError:
+            return None
+        if len(data) != 16:
+            return None
+        done, total = struct.unpack("qq", data)
+        return done, total
 
 
 def _redirect_stdout(path: str) -> None:
@@ -58,28 +125,193 @@ def _redirect_stdout(path: str) -> None:
     os.close(fd)
 
 
-def _child(
-    write_fd: int, fn: Callable[..., Any], args: tuple[Any, ...], stdout: str | None
-) -> None:
-    """The forked child: run, send the pickled outcome, and leave without the parent's exit
-    handlers (``os._exit``)."""
+def _run_child(payload: bytes) -> None:
+    """In the forked child: unpickle the call, run it, write the pickled outcome to the result
+    file, and leave without the server's exit handlers (``os._exit``)."""
     try:
+        stdout, result_path, path, call = pickle.loads(payload)
+        sys.path[:] = path  # the caller's: its modules are found as it finds them
         if stdout:
             _redirect_stdout(stdout)
+        result: tuple[str, Any]
         try:
-            result: tuple[str, Any] = ("ok", fn(*args))
-        except BaseException as exc:  # the parent reports it; the child must not die silently
+            fn, args, kwargs = pickle.loads(call)
+            result = ("ok", fn(*args, **kwargs))
+        except BaseException as exc:  # the caller reports it; the child must not die silently
             result = ("raised", f"{type(exc).__name__}: {exc}")
         try:
             data = pickle.dumps(result, protocol=pickle.HIGHEST_PROTOCOL)
         except Exception as exc:  # an unpicklable result is the run's failure, not a crash
             data = pickle.dumps(("raised", f"its result does not pickle: {exc}"))
-        with os.fdopen(write_fd, "wb") as pipe:
-            pipe.write(data)
+        with open(result_path, "wb") as out:
+            out.write(data)
         sys.stdout.flush()
         sys.stderr.flush()
     finally:
         os._exit(0)
+
+
+# -- the fork server ------------------------------------------------------------------------
+
+
+def thread_count() -> int:
+    """The threads of this process, native ones included (Linux: ``/proc/self/task``; 1
+    elsewhere, where it cannot be read)."""
+    try:
+        return len(os.listdir("/proc/self/task"))
+    except OSError:
+        return 1
+
+
+def _wait_or_kill(pid: int, requests: Connection) -> int:
+    """Wait for the child ``pid``; a ``"kill"`` request, or the caller closing its end, kills
+    it first. Returns its wait status."""
+    pidfd = os.pidfd_open(pid) if hasattr(os, "pidfd_open") else None
+    try:
+        while True:
+            watched: list[Any] = [requests.fileno()] + ([pidfd] if pidfd is not None else [])
+            ready = select.select(watched, [], [], None if pidfd is not None else 0.05)[0]
+            if requests.fileno() in ready:
+                try:
+                    requests.recv_bytes()  # "kill": the deadline passed
+                except EOFError:  # the caller is gone: leave no orphan running
+                    pass
+                os.kill(pid, signal.SIGKILL)
+                return os.waitpid(pid, 0)[1]
+            done, status = os.waitpid(pid, os.WNOHANG)
+            if done:
+                return status
+    finally:
+        if pidfd is not None:
+            os.close(pidfd)
+
+
+def serve(request_fd: int, reply_fd: int) -> None:
+    """The fork server's loop: import :data:`PRELOAD`, then for every request fork a child that
+    runs it, reply ``("started", pid)`` and, once it ends, ``("ended", status)``. Ends when the
+    caller closes its end of the request pipe."""
+    requests = Connection(request_fd, writable=False)
+    replies = Connection(reply_fd, readable=False)
+    for name in PRELOAD:
+        importlib.import_module(name)
+    replies.send(("ready", thread_count()))
+    while True:
+        try:
+            payload = requests.recv_bytes()
+        except EOFError:
+            return
+        threads = thread_count()
+        if threads > 1:  # never fork a process that holds other threads
+            replies.send(("refused", f"the fork server holds {threads} threads"))
+            continue
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:
+            requests.close()
+            replies.close()
+            _run_child(payload)
+        replies.send(("started", pid))
+        replies.send(("ended", _wait_or_kill(pid, requests)))
+
+
+class ForkServer:
+    """The caller's handle on one fork server process (see the module's docstring)."""
+
+    def __init__(self) -> None:
+        request_r, request_w = os.pipe()
+        reply_r, reply_w = os.pipe()
+        env = {**os.environ, **SERVER_ENV}
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "wbcbench.bench.guard", str(request_r), str(reply_w)],
+            pass_fds=(request_r, reply_w),
+            stdin=subprocess.DEVNULL,
+            env=env,
+        )
+        os.close(request_r)
+        os.close(reply_w)
+        self.requests = Connection(request_w, readable=False)
+        self.replies = Connection(reply_r, writable=False)
+        self.pid = os.getpid()
+        kind, threads = self._reply(SERVER_START_S, "start")
+        if kind != "ready" or threads != 1:
+            self.close()
+            raise RuntimeError(f"the fork server started with {threads} threads, not 1")
+
+    def _reply(self, seconds: float, what: str) -> tuple[str, Any]:
+        if not self.replies.poll(seconds):
+            self.close()
+            raise RuntimeError(f"the fork server did not {what} within {seconds:g} s")
+        try:
+            kind, value = self.replies.recv()
+        except EOFError:
+            code = self.process.wait()
+            raise RuntimeError(f"the fork server ended (exit code {code})") from None
+        return kind, value
+
+    def run(self, payload: bytes, seconds: float, waiting: Callable[[], None] | None) -> int | None:
+        """Fork a child for ``payload``; its wait status, or None when it was killed at the
+        deadline. ``waiting`` is called about five times a second meanwhile."""
+        deadline = time.monotonic() + seconds
+        self.requests.send_bytes(payload)
+        kind, value = self._reply(SERVER_START_S, "fork")
+        if kind == "refused":
+            raise RuntimeError(value)
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            if self.replies.poll(min(left, 0.2)):
+                return int(self._reply(0, "reply")[1])
+            if waiting is not None:
+                waiting()
+        self.requests.send_bytes(b"kill")
+        self._reply(60.0, "stop its child")
+        return None
+
+    def alive(self) -> bool:
+        return self.pid == os.getpid() and self.process.poll() is None
+
+    def close(self) -> None:
+        """End the server (it exits when its request pipe closes)."""
+        if self.pid != os.getpid():
+            return
+        self.requests.close()
+        self.replies.close()
+        try:
+            self.process.wait(10)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+
+
+_servers: dict[int, ForkServer] = {}
+_servers_lock = threading.Lock()
+
+
+def fork_server() -> ForkServer:
+    """This thread's fork server, started on first use (one per thread: each waits on its own
+    runs)."""
+    key = threading.get_ident()
+    with _servers_lock:
+        server = _servers.get(key)
+    if server is None or not server.alive():
+        server = ForkServer()
+        with _servers_lock:
+            _servers[key] = server
+    return server
+
+
+@atexit.register
+def _close_servers() -> None:
+    with _servers_lock:
+        servers = list(_servers.values())
+        _servers.clear()
+    for server in servers:
+        server.close()
+
+
+# -- the caller's side ----------------------------------------------------------------------
 
 
 def _died(status: int) -> str:
@@ -94,58 +326,62 @@ def _died(status: int) -> str:
     return f"the run's process ended with exit code {code} before it returned"
 
 
-def _read_until(read_fd: int, deadline: float) -> bytes | None:
-    """Everything the child writes until it closes the pipe, or None at the deadline (the
-    pipe is drained as it fills: a large result never blocks the child)."""
-    chunks: list[bytes] = []
-    while True:
-        left = deadline - time.monotonic()
-        if left <= 0 or not select.select([read_fd], [], [], left)[0]:
-            return None
-        chunk = os.read(read_fd, 1 << 20)
-        if not chunk:
-            return b"".join(chunks)
-        chunks.append(chunk)
-
-
 def call_with_deadline(
     fn: Callable[..., Any],
     args: tuple[Any, ...],
     seconds: float,
     stdout: str | Path | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Guarded:
-    """``fn(*args)`` in a forked child process, abandoned (killed) after ``seconds`` of wall
+    """``fn(*args)`` in a child of this thread's fork server, killed after ``seconds`` of wall
     time.
 
-    The result must pickle. Never raises for what happens in the child. ``stdout``: a file that
-    receives what the child prints to its standard output (kept only when something was
-    printed; a failed outcome's message then names it).
+    ``fn`` (a function of an importable module: not of a script's ``__main__``), ``args`` and
+    the result must pickle. Never raises for what
+    happens in the child. ``stdout``: a file that receives what the child prints to its standard
+    output (kept only when something was printed; a failed outcome's message then names it).
+    ``progress``: passed on as ``fn``'s ``progress`` keyword; the child's calls reach it
+    through :class:`ProgressFile`.
     """
     out = str(stdout) if stdout else None
-    read_fd, write_fd = os.pipe()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    pid = os.fork()
-    if pid == 0:
-        os.close(read_fd)
-        _child(write_fd, fn, args, out)
-    os.close(write_fd)
+    fd, result_path = tempfile.mkstemp(prefix="wbcbench-guard-", suffix=".pickle")
+    os.close(fd)
+    relay: ProgressFile | None = None
+    kwargs: dict[str, Any] = {}
+    if progress is not None:
+        fd, progress_path = tempfile.mkstemp(prefix="wbcbench-progress-")
+        os.close(fd)
+        relay = ProgressFile(progress_path)
+        kwargs["progress"] = relay
+
+    def waiting() -> None:
+        if relay is not None and progress is not None and (seen := relay.read()) is not None:
+            progress(*seen)
+
     try:
-        data = _read_until(read_fd, time.monotonic() + seconds)
+        try:
+            call = pickle.dumps((fn, args, kwargs), pickle.HIGHEST_PROTOCOL)
+        except Exception as exc:
+            return Guarded(None, False, f"the run's arguments do not pickle: {exc}")
+        payload = pickle.dumps((out, result_path, sys.path, call), pickle.HIGHEST_PROTOCOL)
+        try:
+            status = fork_server().run(payload, seconds, waiting)
+        except RuntimeError as exc:
+            return Guarded(None, False, f"the wall-clock guard failed: {exc}")
+        if status is None:
+            outcome = Guarded(
+                None,
+                False,
+                f"exceeded the wall-clock guard of {seconds:g} s (a hung solver or native "
+                "call); the run was stopped",
+            )
+        else:
+            waiting()
+            outcome = _outcome(Path(result_path).read_bytes(), status)
     finally:
-        os.close(read_fd)
-    if data is None:
-        os.kill(pid, signal.SIGKILL)
-        os.waitpid(pid, 0)
-        outcome = Guarded(
-            None,
-            False,
-            f"exceeded the wall-clock guard of {seconds:g} s (a hung solver or native call); "
-            "the run was stopped",
-        )
-    else:
-        _, status = os.waitpid(pid, 0)
-        outcome = _outcome(data, status)
+        Path(result_path).unlink(missing_ok=True)
+        if relay is not None:
+            Path(relay.path).unlink(missing_ok=True)
     printed = Path(out) if out else None
     if printed is not None and printed.exists():
         if printed.stat().st_size == 0:
@@ -174,3 +410,7 @@ def timing_deadline(window_end: float, ticks: int) -> float:
     """The default guard of a timing replay [s]: its recording (simulated up to the window's
     end) plus one second a replayed tick, at least 300 s."""
     return max(300.0, 120.0 * window_end + float(ticks))
+
+
+if __name__ == "__main__":
+    serve(int(sys.argv[1]), int(sys.argv[2]))

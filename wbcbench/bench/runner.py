@@ -222,7 +222,7 @@ def execute(
     """Run one combination and append it to the store (None when it was already there).
 
     As a sweep's runs: every QP reported solved is checked (``check_factor``, see
-    :func:`compute_tracking`), and the run executes in a forked child under the wall-clock
+    :func:`compute_tracking`), and the run executes in a child process under the wall-clock
     guard (``wall_limit_s``, default :func:`~wbcbench.bench.guard.tracking_deadline`): a run
     that hangs or whose process dies is a ``failed`` row. The record then carries no
     ``RunResult`` (it does not cross processes)."""
@@ -233,22 +233,31 @@ def execute(
     rid = run_id(loaded, settings, version)
     if skip_done and rid in store.done_run_ids():
         return None
-    args = (loaded, settings, rid, version, progress, check_factor)
     if can_guard():
         seconds = wall_limit_s or tracking_deadline(loaded.spec.duration)
         printed = printed_path(store.folder, rid)
-        outcome = call_with_deadline(_tracking_without_result, args, seconds, printed)
+        args = (loaded, settings, rid, version, check_factor)
+        outcome = call_with_deadline(
+            _tracking_without_result, args, seconds, printed, progress=progress
+        )
         if outcome.ok:
             record: RunRecord = outcome.value
         else:
             record = ended_record(loaded, settings, rid, version, "failed", outcome.message)
     else:
-        record = compute_tracking(*args)
+        record = compute_tracking(loaded, settings, rid, version, progress, check_factor)
     store_record(store, loaded, record)
     return record
 
 
-def _tracking_without_result(*args: Any) -> RunRecord:
-    record = compute_tracking(*args)
+def _tracking_without_result(
+    loaded: LoadedScenario,
+    settings: RunSettings,
+    rid: str,
+    version: str,
+    check_factor: float | None,
+    progress: Callable[[int, int], None] | None = None,
+) -> RunRecord:
+    record = compute_tracking(loaded, settings, rid, version, progress, check_factor)
     record.result = None
     return record

@@ -887,22 +887,20 @@ HLS_WALL_LIMIT_S = 1800.0
 def _guarded(
     what: str, fn: Callable[..., Any], args: tuple[Any, ...], seconds: float, folder: Path
 ) -> None:
-    """``fn(*args)`` with one BLAS thread, in a forked child under the wall-clock guard where the
-    process may start one: a hang or a crash is reported and the sweep ends normally (what the
-    child wrote to the folder stays; what it printed goes to ``folder``'s logs)."""
+    """``fn(*args)`` with one BLAS thread, in a child under the wall-clock guard where the
+    platform has one (:mod:`wbcbench.bench.guard`, whose children run with one BLAS thread): a
+    hang or a crash is reported and the sweep ends normally (what the child wrote to the folder
+    stays; what it printed goes to ``folder``'s logs)."""
     from threadpoolctl import threadpool_limits
 
     from wbcbench.bench.guard import call_with_deadline, can_guard
     from wbcbench.bench.results import printed_path
 
-    def limited(*a: Any) -> Any:
-        with threadpool_limits(1):
-            return fn(*a)
-
     if not can_guard():
-        limited(*args)
+        with threadpool_limits(1):
+            fn(*args)
         return
     printed = printed_path(folder, what.replace(" ", "_"))
-    outcome = call_with_deadline(limited, args, seconds, printed)
+    outcome = call_with_deadline(fn, args, seconds, printed)
     if not outcome.ok:
         print(f"{what}: {outcome.message}")
