@@ -15,7 +15,7 @@ LOCK_VENV         := .venv-lock
 LOCK_FLAGS        := --extra dev --extra robots --all-build-deps --allow-unsafe --strip-extras \
                      --no-emit-index-url --no-emit-find-links --no-emit-trusted-host
 
-.PHONY: venv native test test-fast lint bench bench-full bench-micro reference models clean lock upgrade
+.PHONY: venv native test test-numerics test-fast lint bench bench-full bench-micro reference models clean lock upgrade
 
 venv: $(STAMP)
 
@@ -52,9 +52,27 @@ upgrade: $(LOCK_VENV)/bin/pip-compile
 	@$(MAKE) --no-print-directory test || { echo "== the tests FAIL with the upgraded lock;" \
 		"'git checkout $(LOCK)' returns to the tested set"; exit 1; }
 
-# one worker per core (pytest-xdist); each worker runs its tests with one BLAS thread
+# One worker per core (pytest-xdist); each worker runs its tests with one BLAS thread. The tests
+# run in a random order (pytest-randomly) whose seed is printed first: `make test SEED=<n>`
+# repeats that order. No test may take longer than pytest-timeout's limit (pyproject.toml).
+SEED ?= $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
+
 test: $(STAMP)
-	$(PY) -m pytest -q -n auto
+	@echo "== the test order's seed: $(SEED) (make test SEED=$(SEED) repeats it)"
+	$(PY) -m pytest -q -n auto --randomly-seed=$(SEED)
+
+# The tests whose answers depend on floating-point rounding: CI runs them a second time under
+# another BLAS kernel (OPENBLAS_CORETYPE) and another random order, to show that they assert
+# what the methods guarantee, not one CPU's rounding.
+NUMERICS := tests/test_native_equality.py tests/test_native_hierarchy.py tests/test_native_hls.py \
+            tests/test_native_rc_lqp.py tests/test_native_reduced.py tests/test_native_solvers.py \
+            tests/test_native_dynamics.py tests/test_oracle.py tests/test_hierarchy.py \
+            tests/test_hls.py tests/test_hqp.py tests/test_qp.py tests/test_qp_backends.py
+
+test-numerics: $(STAMP)
+	@echo "== numerics under OPENBLAS_CORETYPE=$${OPENBLAS_CORETYPE:-<detected>}," \
+		"the test order's seed: $(SEED)"
+	$(PY) -m pytest -q -n auto --randomly-seed=$(SEED) $(NUMERICS)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check wbcbench tests benchmarks
