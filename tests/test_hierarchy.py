@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import re
+from dataclasses import replace
+from typing import Any
+
 import numpy as np
 import pytest
 
 from wbcbench.errors import UnknownNameError
-from wbcbench.qp import make_solver
+from wbcbench.qp import Problem, Solution, SolutionStatus, make_solver
 from wbcbench.qp.hierarchy import (
     Constraints,
     Objective,
@@ -44,6 +48,46 @@ def random_hierarchy(seed: int, n: int = 14, active: bool = True):
     ]
     finals = [Objective("reg", np.eye(n), np.zeros(n))]
     return hard, levels, finals
+
+
+class BoundBreaking:
+    """A DAQP handle that reports solved a point ``excess`` past an upper bound: the simple
+    bound its answer is closest to, or without simple bounds the first inequality row. With
+    ``infeasible_first`` its first QP is declared infeasible, as DAQP declares some level QPs
+    the levels above leave feasible, so that the point is the proximal retry's answer."""
+
+    def __init__(self, excess: float, infeasible_first: bool = False) -> None:
+        self.inner = make_solver("daqp", tier="high")
+        self.excess = excess
+        self.infeasible_first = infeasible_first
+        self.calls = 0
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+    def solve(self, problem: Problem, *args: Any, **kwargs: Any) -> Solution:
+        self.calls += 1
+        if self.infeasible_first and self.calls == 1:
+            return Solution(SolutionStatus.INFEASIBLE, message="primal infeasible", solver="daqp")
+        sol = self.inner.solve(problem, *args, **kwargs)
+        assert sol.success and sol.x is not None
+        x = sol.x.copy()
+        if problem.ub is not None and np.isfinite(problem.ub).any():
+            j = int(np.argmax(x - problem.ub))
+            x[j] = problem.ub[j] + self.excess
+        else:
+            i = int(np.flatnonzero(np.isfinite(problem.u))[0])
+            c = problem.C[i]
+            x += (problem.u[i] + self.excess - c @ x) / (c @ c) * c
+        return replace(sol, x=x)
+
+
+#: what a level answer past a bound is refused with at the high tier (0.5 past a bound of ±2
+#: is 1.7e-01; a step along an inequality row of the null-space QP moves several variables)
+PAST_THE_BOUND = (
+    r"reported solved but violates a bound or a held inequality by (\d\.\de-\d\d) > 1e-08 "
+    r"\(relative to 1 \+ \|bound\|\)"
+)
 
 
 def solve(strategy: str, hard, levels, finals, solver: str = "daqp"):
@@ -124,6 +168,34 @@ def test_every_backend_solves_the_cascade() -> None:
         result = solve("nullspace", hard, levels, finals, solver=name)
         assert result.ok, (name, result.message)
         np.testing.assert_allclose(result.x, reference.x, atol=1e-4, err_msg=name)
+
+
+@pytest.mark.parametrize("strategy", ["cascade", "nullspace"])
+def test_a_level_answer_past_a_hard_bound_is_refused(strategy: str) -> None:
+    hard, levels, finals = random_hierarchy(0)
+    handles: list[Any] = [make_solver("daqp", tier="high") for _ in range(4)]
+    breaking = BoundBreaking(0.5, infeasible_first=True)
+    handles[1] = breaking
+    result = solve_hierarchy(hard, levels, finals, strategy, handles, prox=1e-8)
+    assert not result.ok
+    refused = re.fullmatch(f"level 'L2': daqp: failed: {PAST_THE_BOUND}", result.message)
+    assert refused is not None, result.message
+    assert float(refused[1]) >= 0.5 / 3 * (1 - 1e-3)
+    # the bare QP declared infeasible, then the proximal retry's answer refused
+    assert breaking.calls == 2 and result.retries == 1
+    weighted = solve_hierarchy(hard, levels, finals, "weighted", [BoundBreaking(0.5)])
+    assert not weighted.ok
+    assert re.fullmatch(f"weighted: failed: {PAST_THE_BOUND}", weighted.message)
+
+
+def test_a_level_answer_within_the_tolerance_is_accepted() -> None:
+    hard, levels, finals = random_hierarchy(0)
+    handles: list[Any] = [make_solver("daqp", tier="high") for _ in range(3)]
+    result = solve_hierarchy(
+        hard, levels, finals, "cascade", [*handles, BoundBreaking(1e-12)], prox=1e-8
+    )
+    assert result.ok, result.message
+    assert result.x.max() > hard.ub.max()  # type: ignore[union-attr]
 
 
 def test_row_and_null_space_bases() -> None:

@@ -19,7 +19,8 @@ from wbcbench.tasks.tasks import (
     Task,
 )
 
-from .conftest import random_standing_state
+from .conftest import IMPLS, random_standing_state
+from .test_hierarchy import BoundBreaking
 
 
 def task_pool(robot: Robot) -> list[Task]:
@@ -200,3 +201,19 @@ def test_rqr_strategy_matches_the_qp_cascade_without_active_inequalities(tocabi:
     assert outs[0].ok and outs[1].ok, outs[1].message
     np.testing.assert_allclose(outs[1].qdd, outs[0].qdd, atol=1e-6)
     assert "solve.L1" in outs[1].timings
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_a_torque_past_its_limit_is_not_an_ok_step(tocabi: Robot, impl: str) -> None:
+    """A level QP declared infeasible, then its proximal retry answered with a torque 0.5 N·m
+    past its limit and reported solved: the step fails, in both impls, and says why."""
+    ctrl = make(tocabi, task_pool(tocabi), contacts_for(tocabi, 2), impl=impl)
+    ctrl.solvers[1] = BoundBreaking(0.5, infeasible_first=True)
+    q, v = random_standing_state(tocabi, np.random.default_rng(0))
+    ctrl.start(RobotState(tocabi, q, v))
+    out = ctrl.step(RobotState(tocabi, q, v), 0.0)
+    assert not out.ok
+    assert out.message == (
+        "hqp: level 'L2': daqp: failed: reported solved but violates a bound or a held "
+        "inequality by 5.0e-05 > 1e-08 (relative to 1 + |bound|)"
+    )

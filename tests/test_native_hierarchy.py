@@ -28,6 +28,7 @@ most two of the four states.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -37,10 +38,10 @@ from wbcbench import _native
 from wbcbench.controllers import native
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp import make_solver
-from wbcbench.qp.hierarchy import solve_hierarchy
+from wbcbench.qp.hierarchy import accept_tol, solve_hierarchy
 
 from .conftest import ANY_TIER_SOLVERS, grounded_state
-from .test_hierarchy import random_hierarchy
+from .test_hierarchy import PAST_THE_BOUND, BoundBreaking, random_hierarchy
 from .test_native_equality import CASES, build_pair, relative
 
 pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
@@ -123,6 +124,38 @@ def test_engine_failure_names_the_level() -> None:
     options.handles = 1  # fewer handles than QPs
     with pytest.raises(ValueError, match="one solver handle per level"):
         engine.solve(*native_hierarchy(hard, levels, finals), 1, options, fail)
+
+
+def breaking_handles(strategy: str) -> list[Any]:
+    """Four DAQP handles, the one of L2 (of the one QP when weighted) a BoundBreaking one whose
+    bare QP is declared infeasible."""
+    handles: list[Any] = [make_solver("daqp", tier="high") for _ in range(4)]
+    if strategy == "weighted":
+        handles[0] = BoundBreaking(0.5)
+    else:
+        handles[1] = BoundBreaking(0.5, infeasible_first=True)
+    return handles
+
+
+@pytest.mark.parametrize("strategy", STRATEGIES)
+def test_engine_refuses_an_answer_past_a_hard_bound(strategy: str) -> None:
+    core = native.core()
+    hard, levels, finals = random_hierarchy(0)
+    python = solve_hierarchy(hard, levels, finals, strategy, breaking_handles(strategy), prox=1e-8)
+    engine = core.Hierarchy(0)
+    handles = breaking_handles(strategy)
+    solve = native.LevelSolve(lambda pool, i: engine.slot(i), [handles])
+    options = core.HierarchyOptions()
+    options.strategy = getattr(core.Strategy, strategy)
+    options.prox, options.handles = 1e-8, len(handles)
+    options.accept_tol = accept_tol(handles[0])
+    result = engine.solve(*native_hierarchy(hard, levels, finals), len(finals), options, solve)
+    level = "weighted" if strategy == "weighted" else "L2"
+    assert not result.ok and not python.ok and result.failed_level == level
+    assert re.fullmatch(PAST_THE_BOUND, result.message), result.message
+    prefix = "weighted: failed: " if level == "weighted" else "level 'L2': daqp: failed: "
+    for message in (solve.message(level, result.message), python.message):
+        assert re.fullmatch(prefix + PAST_THE_BOUND, message), message
 
 
 #: the controllers and the settings each is compared in; the strategy whose Python answer

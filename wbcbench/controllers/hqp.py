@@ -140,6 +140,7 @@ class Hqp(Controller):
         s.finals = [getattr(core.HqpFinal, name) for name in cfg.finals]
         s.wrench_weights = np.asarray(cfg.wrench_weights, dtype=float)
         s.prox = cfg.prox
+        s.accept_tol = native.accept_tol(self.ctx)
         s.level_weights = list(cfg.level_weights)
         s.priorities, s.groups = native.priority_groups(tasks)
         s.force_level = [task.level == "force" for task in tasks]

@@ -220,6 +220,7 @@ class Lqp(Controller):
         tasks = self.ctx.tasks
         tick = native.new_tick("LqpTick", self.ctx.robot, tasks, list(self.frames))
         s = lexicographic_settings(self.config, tasks)
+        s.accept_tol = native.accept_tol(self.ctx)
         native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
         self.native_tick = tick

@@ -25,6 +25,8 @@ from wbcbench import _native
 from wbcbench.controllers.base import ControlOutput, SolveTimes
 from wbcbench.errors import ControllerError
 from wbcbench.qp import Problem, Solution, SolutionStatus
+from wbcbench.qp.hierarchy import ACCEPT_FACTOR
+from wbcbench.qp.registry import solver_class
 from wbcbench.tasks.tasks import (
     ComTask,
     FrameOrientationTask,
@@ -191,6 +193,12 @@ def set_limits(settings: Any, tau_max: Any, Cw: Any, lw: Any, uw: Any, n_wrench:
     settings.uw = np.asarray(uw, dtype=float)
 
 
+def accept_tol(ctx: Any) -> float:
+    """The tolerance a native hierarchy holds its level answers to: the Python reference's
+    (:func:`wbcbench.qp.hierarchy.accept_tol`) for the context's backend and tier."""
+    return ACCEPT_FACTOR * float(solver_class(ctx.solver).accuracy(ctx.tier))
+
+
 #: why a tick whose build found a NaN failed
 NAN_MESSAGE = "the QP holds a NaN (state or references not finite)"
 
@@ -353,8 +361,15 @@ class LevelSolve:
             return None
         return sol.x, sol.z
 
-    def message(self, level: str) -> str:
-        """Why the level's QP failed, as the Python hierarchy says it."""
+    def message(self, level: str, refusal: str = "") -> str:
+        """Why the level's QP failed, as the Python hierarchy says it; ``refusal``: why the
+        hierarchy refused an answer the backend reported solved (``HierarchyResult.message``)."""
+        if refusal:
+            names = {handle.name for handles in self.pools for handle in handles}
+            solver = f"{names.pop()}: " if len(names) == 1 else ""
+            if level == "weighted":
+                return f"weighted: failed: {refusal}"
+            return f"level {level!r}: {solver}failed: {refusal}"
         sol = self.failed
         if sol is None and self.natives is not None:
             record = self.natives.failure()
@@ -418,7 +433,7 @@ def hierarchy_region(
     solve.start(timer)
     if solve.run(tick, q, v, t):
         return None
-    return solve.message(tick.result.failed_level)
+    return solve.message(tick.result.failed_level, tick.result.message)
 
 
 def output(

@@ -359,6 +359,7 @@ class RcLqp(Controller):
         split = _native.split_spec(self.split)
         tick = native.new_tick("RcLqpTick", self.ctx.robot, tasks, list(self.frames), split)
         s = lexicographic_settings(cfg, tasks)
+        s.accept_tol = native.accept_tol(self.ctx)
         native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         rc = core.RcLqpSettings()
         rc.assembly = getattr(core.Assembly, cfg.assembly)
@@ -389,7 +390,9 @@ class RcLqp(Controller):
         if self.native_solve.run(tick, q, v, t):
             return None
         if tick.level_failed:
-            return str(tick.message) + self.native_solve.message(tick.failed_level)
+            return str(tick.message) + self.native_solve.message(
+                tick.failed_level, tick.failed_reason
+            )
         return str(tick.message)
 
     def _step_native(self, state: RobotState, t: float) -> ControlOutput:

@@ -44,7 +44,7 @@ Two options of the sequential strategies save QPs without changing the solution 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -78,6 +78,19 @@ RANK_TOL = 1e-10
 #: :func:`_carried_violation`): a solver of modest accuracy (an ADMM or interior-point method at
 #: its default tolerance) leaves more than i FEAS_TOL.
 FEAS_TOL = 1e-9
+#: A level's answer is accepted only when it meets the hard constraints and the inequalities of
+#: the levels above (as widened for its QP) to ACCEPT_FACTOR × the accuracy its backend was asked
+#: for, relative to 1 + |bound| as the widening is: a backend can report "optimal" for a point
+#: outside its QP's bounds (DAQP, after declaring a feasible level QP infeasible, on the proximal
+#: retry), and the widening of the levels below would then carry that violation on and enlarge it.
+ACCEPT_FACTOR = 10.0
+
+
+def accept_tol(solver: object) -> float:
+    """How far (relative to 1 + |bound|) a level's answer from ``solver`` may lie outside the
+    bounds its QP held hard: :data:`ACCEPT_FACTOR` × the accuracy of the handle's tier."""
+    accuracy = getattr(solver, "accuracy", QPSolver.accuracy)
+    return ACCEPT_FACTOR * float(accuracy(getattr(solver, "tier", "default")))
 
 
 def _widen(lower: Array, upper: Array, relax: float) -> tuple[Array, Array]:
@@ -251,6 +264,32 @@ def _violation(Cx: Array, lower: Array, upper: Array) -> Array:
     return np.where(Cx > upper, Cx - upper, np.where(Cx < lower, Cx - lower, 0.0))
 
 
+def _checked(
+    sol: Solution,
+    x: Array | None,
+    hard: Constraints,
+    prev_C: list[Array],
+    prev_lo: list[Array],
+    prev_hi: list[Array],
+    relax: float,
+    solver: object,
+) -> tuple[Solution, Array | None]:
+    """``(sol, x)``, or a failed copy of ``sol`` and None when x leaves the hard constraints or
+    the held inequalities violated beyond the ``relax`` widening of the QP by more than
+    :func:`accept_tol`: the backend's status is not taken on trust."""
+    if x is None or not sol.success:
+        return sol, x
+    tol = accept_tol(solver)
+    excess = _carried_violation(x, hard, prev_C, prev_lo, prev_hi) - relax
+    if excess <= tol:
+        return sol, x
+    message = (
+        "reported solved but violates a bound or a held inequality by "
+        f"{excess:.1e} > {tol:.0e} (relative to 1 + |bound|)"
+    )
+    return replace(sol, status=SolutionStatus.FAILED, message=message), None
+
+
 # -- the strategies ----------------------------------------------------------------------------
 
 
@@ -281,6 +320,10 @@ def solve_hierarchy(
     the same for both strategies. It leaves the level's objective untouched, so the level's
     optimum moves only through the inequalities (by about ``prox ‖x − x_c‖`` when x_c is
     infeasible); higher levels stay exact (they are held).
+
+    An answer the backend reports solved counts as a failure (retried as above, then the
+    hierarchy fails with the reason) when it leaves a hard constraint or a held inequality
+    violated beyond the QP's widening by more than :func:`accept_tol`.
     """
     if strategy not in STRATEGIES:
         raise UnknownNameError("hierarchy strategy", strategy, STRATEGIES)
@@ -344,10 +387,10 @@ def _solve_weighted(
         col += r
     problem = _with_hard(hard, H, g, C_rows, lo, hi, nx, name="weighted")
     sol = solver.solve(problem)
+    sol, x = _checked(sol, None if sol.x is None else sol.x[:n], hard, [], [], [], 0.0, solver)
     _record(timer, sol, "weighted")
-    if not sol.success or sol.x is None:
+    if not sol.success or x is None:
         return HierarchyResult(np.zeros(n), False, f"weighted: {sol.status}: {sol.message}")
-    x = sol.x[:n]
     results = [_level_result(lv, x, None, 0.0) for lv in soft]
     results[0].solution = sol
     return HierarchyResult(x, True, "", results)
@@ -703,11 +746,14 @@ def _cascade_level(
         hi.append(lv.u)
     problem = _with_hard(hard, H, g, C_rows, lo, hi, nx, lv.name, eq_rows, relax)
     sol = solver.solve(problem)
-    if not sol.success or sol.x is None:
+    sol, x = _checked(
+        sol, None if sol.x is None else sol.x[:n], hard, prev_C, prev_lo, prev_hi, relax, solver
+    )
+    if not sol.success or x is None:
         return sol, None
     if hard_own and not _own_multipliers_vanish(sol, r_own):
         return sol, None
-    return sol, sol.x[:n]
+    return sol, x
 
 
 def _nullspace_level(
@@ -785,11 +831,13 @@ def _nullspace_level(
         name=lv.name,
     )
     sol = solver.solve(problem)
-    if not sol.success or sol.x is None:
+    x = None if sol.x is None else x_p + Z @ sol.x[:d]
+    sol, x = _checked(sol, x, hard, prev_C, prev_lo, prev_hi, relax, solver)
+    if not sol.success or x is None:
         return sol, None
     if hard_own and not _own_multipliers_vanish(sol, r_own):
         return sol, None
-    return sol, x_p + Z @ sol.x[:d]
+    return sol, x
 
 
 def _solve_rqr(

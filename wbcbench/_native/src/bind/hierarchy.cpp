@@ -55,7 +55,8 @@ void bind_hierarchy(nb::module_& m) {
       .def_rw("prox", &HierarchyOptions::prox)
       .def_rw("merge_finals", &HierarchyOptions::merge_finals)
       .def_rw("slack_free_first", &HierarchyOptions::slack_free_first)
-      .def_rw("handles", &HierarchyOptions::handles);
+      .def_rw("handles", &HierarchyOptions::handles)
+      .def_rw("accept_tol", &HierarchyOptions::accept_tol);
 
   nb::class_<LevelResult>(m, "LevelResult")
       .def_ro("name", &LevelResult::name)
@@ -66,6 +67,7 @@ void bind_hierarchy(nb::module_& m) {
       .def_ro("x", &HierarchyResult::x)
       .def_ro("ok", &HierarchyResult::ok)
       .def_ro("failed_level", &HierarchyResult::failed_level)
+      .def_ro("message", &HierarchyResult::message)
       .def_ro("levels", &HierarchyResult::levels)
       .def_ro("retries", &HierarchyResult::retries);
 
@@ -89,6 +91,7 @@ void bind_hierarchy(nb::module_& m) {
       .def_rw("qdd_limit", &LexicographicSettings::qdd_limit)
       .def_rw("wrench_regularization", &LexicographicSettings::wrench_regularization)
       .def_rw("prox", &LexicographicSettings::prox)
+      .def_rw("accept_tol", &LexicographicSettings::accept_tol)
       .def_rw("final_weight", &LexicographicSettings::final_weight)
       .def_rw("weights", &LexicographicSettings::weights)
       .def_rw("groups", &LexicographicSettings::groups)
@@ -133,6 +136,7 @@ void bind_hierarchy(nb::module_& m) {
       .def_rw("finals", &HqpSettings::finals)
       .def_rw("wrench_weights", &HqpSettings::wrench_weights)
       .def_rw("prox", &HqpSettings::prox)
+      .def_rw("accept_tol", &HqpSettings::accept_tol)
       .def_rw("level_weights", &HqpSettings::level_weights)
       .def_rw("groups", &HqpSettings::groups)
       .def_rw("priorities", &HqpSettings::priorities)

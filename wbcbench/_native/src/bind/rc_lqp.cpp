@@ -72,6 +72,7 @@ void bind_rc_lqp(nb::module_& m) {
       .def_prop_ro("message", &RcLqpTick::message)
       .def_prop_ro("level_failed", &RcLqpTick::level_failed)
       .def_prop_ro("failed_level", &RcLqpTick::failed_level)
+      .def_prop_ro("failed_reason", &RcLqpTick::failed_reason)
       .def_prop_ro("reduced_time", &RcLqpTick::reduced_time)
       .def_prop_ro("lqp1_time", &RcLqpTick::lqp1_time)
       .def_prop_ro("lqp2_time", &RcLqpTick::lqp2_time)

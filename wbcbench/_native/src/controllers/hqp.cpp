@@ -164,6 +164,7 @@ bool HqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vect
   HierarchyOptions options;
   options.strategy = s_.strategy;
   options.prox = s_.prox;
+  options.accept_tol = s_.accept_tol;
   options.handles = handles();
   result_ = hierarchy_.solve(hard_, soft_, static_cast<int>(s_.finals.size()), options, solver);
   solver_seconds = hierarchy_.solver_seconds();

@@ -19,6 +19,7 @@ struct HqpSettings {
   std::vector<HqpFinal> finals;
   Vector wrench_weights;                 // W_c diagonal per contact (6,) for the wrench final
   double prox = 1e-8;                    // proximal weight of a failed level's retry
+  double accept_tol = 1e-5;              // HierarchyOptions::accept_tol
   std::vector<double> level_weights;     // weighted strategy: per priority (the last repeats)
   std::vector<std::vector<int>> groups;  // task indices of each priority, highest first
   std::vector<int> priorities;           // the priority of each group (level names L<p>)

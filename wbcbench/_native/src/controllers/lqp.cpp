@@ -111,6 +111,7 @@ bool FullLqp::solve(const RobotDynamics& dyn, const TaskSet& tasks, LevelSolver&
   HierarchyOptions options;
   options.strategy = s_.strategy;
   options.prox = s_.prox;
+  options.accept_tol = s_.accept_tol;
   options.merge_finals = true;
   options.slack_free_first = true;
   options.handles = handles();

@@ -17,6 +17,7 @@ struct LexicographicSettings {
   double qdd_limit = 300.0;              // |q̈_j| of actuated joints [rad/s²]
   double wrench_regularization = 1e-4;   // weight of ‖f‖² next to the acceleration energy
   double prox = 1e-8;                    // proximal weight of a failed level's retry
+  double accept_tol = 1e-5;              // HierarchyOptions::accept_tol
   double final_weight = 1e-4;            // the energy's weight in the last level's cost
   std::vector<double> weights;           // weighted strategy: per level (the last repeats)
   std::vector<std::vector<int>> groups;  // task indices of each priority, highest first

@@ -300,6 +300,7 @@ HierarchyOptions RcLqpTick::options(int count) const {
   HierarchyOptions o;
   o.strategy = s_.strategy;
   o.prox = s_.prox;
+  o.accept_tol = s_.accept_tol;
   o.merge_finals = true;
   o.slack_free_first = true;
   o.handles = 2 * (count + 1);
@@ -420,6 +421,7 @@ bool RcLqpTick::fail(const std::string& prefix, const HierarchyResult& result) {
   message_ = prefix;
   level_failed_ = true;
   failed_level_ = result.failed_level;
+  failed_reason_ = result.message;
   return false;
 }
 
@@ -569,6 +571,7 @@ bool RcLqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
   evaluate(q, v, t);
   message_.clear();
   failed_level_.clear();
+  failed_reason_.clear();
   level_failed_ = false;
   res1_ = HierarchyResult();
   res2_ = HierarchyResult();
@@ -625,6 +628,7 @@ bool RcLqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
         message_ = why + "; re-planning did not meet it and the full-model LQP failed: ";
         level_failed_ = true;
         failed_level_ = fallback_.result().failed_level;
+        failed_reason_ = fallback_.result().message;
         return done(false);
       }
       fell_back_ = true;

@@ -93,6 +93,8 @@ class RcLqpTick : public Tick {
   const std::string& message() const { return message_; }
   bool level_failed() const { return level_failed_; }
   const std::string& failed_level() const { return failed_level_; }
+  // why that level's answer was refused although reported solved (HierarchyResult::message)
+  const std::string& failed_reason() const { return failed_reason_; }
   // stage times of the last tick [s]: the reduced model, each LQP (formulation + solve) and
   // the full-model LQP (0 when it did not run)
   double reduced_time() const { return reduced_time_; }
@@ -170,7 +172,7 @@ class RcLqpTick : public Tick {
   double base_residual_ = 0.0, coupling_residual_ = 0.0, assembly_diff_ = 0.0;
   double coupling_violation_ = 0.0, wrench_residual_ = 0.0;
   Vector cw_f_;  // Cw f (wrench_violation)
-  std::string message_, failed_level_;
+  std::string message_, failed_level_, failed_reason_;
   bool level_failed_ = false;
   double reduced_time_ = 0.0, lqp1_time_ = 0.0, lqp2_time_ = 0.0, fallback_time_ = 0.0;
   double solver_seconds_ = 0.0;

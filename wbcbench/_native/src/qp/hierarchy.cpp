@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 
@@ -194,10 +195,34 @@ Hierarchy::Answer Hierarchy::call(LevelSolver& solver, const std::string& level)
   return a;
 }
 
+double Hierarchy::held_violation(const HardConstraints& hard, const Vector& x) const {
+  double worst = 0.0;
+  if (hard.C.rows()) worst = relative_violation(hard.C * x, hard.l, hard.u);
+  if (hard.has_box()) worst = std::max(worst, relative_violation(x, hard.lb, hard.ub));
+  for (size_t j = 0; j < prev_C_.size(); ++j)
+    worst = std::max(worst, relative_violation(prev_C_[j] * x, prev_lo_[j], prev_hi_[j]));
+  return worst;
+}
+
+bool Hierarchy::check(const HardConstraints& hard, const Vector& x, double relax,
+                      Answer& a) const {
+  const double excess = held_violation(hard, x) - relax;
+  if (excess <= accept_tol_) return true;
+  char text[160];
+  std::snprintf(text, sizeof text,
+                "reported solved but violates a bound or a held inequality by %.1e > %.0e "
+                "(relative to 1 + |bound|)",
+                excess, accept_tol_);
+  a.success = false;
+  a.refusal = text;
+  return false;
+}
+
 HierarchyResult Hierarchy::solve(const HardConstraints& hard,
                                  const std::vector<PriorityLevel>& soft, int n_finals,
                                  const HierarchyOptions& options, LevelSolver& solver) {
   solver_seconds_ = 0.0;
+  accept_tol_ = options.accept_tol;
   const int n_soft = static_cast<int>(soft.size());
   if (options.strategy == Strategy::kWeighted) {
     if (options.handles < 1) throw std::invalid_argument("hierarchy: one solver handle needed");
@@ -246,10 +271,14 @@ HierarchyResult Hierarchy::solve_weighted(const HardConstraints& hard,
     qp.ub.head(n) = hard.ub;
   }
   HierarchyResult out;
-  const Answer a = call(solver, "weighted");
-  if (!a.success) {
+  Answer a = call(solver, "weighted");
+  prev_C_.clear();  // (only the hard constraints are held)
+  prev_lo_.clear();
+  prev_hi_.clear();
+  if (!a.success || !check(hard, a.qp_x.head(n), 0.0, a)) {
     out.x.setZero(n);
     out.failed_level = "weighted";
+    out.message = a.refusal;
     return out;
   }
   out.x = a.qp_x.head(n);
@@ -310,7 +339,7 @@ Hierarchy::Answer Hierarchy::cascade_level(const HardConstraints& hard, const Pr
   }
   if (hard.has_box()) widen(hard.lb, hard.ub, relax, qp.lb.head(n), qp.ub.head(n));
   Answer a = call(solver, lv.name);
-  if (!a.success) return a;
+  if (!a.success || !check(hard, a.qp_x.head(n), relax, a)) return a;
   if (hard_own && !own_multipliers_vanish(a.qp_x, a.z, a.has_z, r_own)) return a;
   a.accepted = true;
   a.x = a.qp_x.head(n);
@@ -384,10 +413,12 @@ Hierarchy::Answer Hierarchy::nullspace_level(const HardConstraints& hard,
   add(lv.C, lv.l, lv.u, true);
   Answer a = call(solver, lv.name);
   if (!a.success) return a;
+  Vector x = x_p;
+  x.noalias() += Z * a.qp_x.head(d);
+  if (!check(hard, x, relax, a)) return a;
   if (hard_own && !own_multipliers_vanish(a.qp_x, a.z, a.has_z, r_own)) return a;
   a.accepted = true;
-  a.x = x_p;
-  a.x.noalias() += Z * a.qp_x.head(d);
+  a.x = std::move(x);
   return a;
 }
 
@@ -420,15 +451,8 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
   bool skip = false;
   double carried = 0.0;  // relative violation the levels solved so far left (see kFeasTol)
 
-  auto carried_violation = [&](const Vector& xs) {
-    // the largest relative violation xs leaves on the inequalities the next levels inherit
-    double worst = 0.0;
-    if (hard.C.rows()) worst = relative_violation(hard.C * xs, hard.l, hard.u);
-    if (hard.has_box()) worst = std::max(worst, relative_violation(xs, hard.lb, hard.ub));
-    for (size_t j = 0; j < prev_C_.size(); ++j)
-      worst = std::max(worst, relative_violation(prev_C_[j] * xs, prev_lo_[j], prev_hi_[j]));
-    return worst;
-  };
+  // the largest relative violation xs leaves on the inequalities the next levels inherit
+  auto carried_violation = [&](const Vector& xs) { return held_violation(hard, xs); };
   auto hold_inequalities = [&](const PriorityLevel& lv, const LevelResult& res) {
     if (!lv.C.rows()) return;
     prev_C_.push_back(lv.C);
@@ -527,6 +551,7 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
     if (a.solved && (!a.success || !a.accepted)) {
       out.x = has_x ? x : Vector(Vector::Zero(n));
       out.failed_level = lv.name;
+      out.message = a.refusal;
       return out;
     }
     x = a.x;

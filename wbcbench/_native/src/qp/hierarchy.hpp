@@ -48,6 +48,9 @@ struct HierarchyResult {
   Vector x;
   bool ok = false;
   std::string failed_level;  // the level whose QP failed ("" if none)
+  // why the failed level's answer was refused although the backend reported it solved ("" when
+  // the backend itself failed)
+  std::string message;
   std::vector<LevelResult> levels;
   int retries = 0;  // levels re-solved with the proximal term
 };
@@ -62,6 +65,10 @@ struct HierarchyOptions {
   // solver handles the caller holds: one per level then per final; with slack_free_first and
   // twice as many, the second half solves the slack QPs (as in the Python reference)
   int handles = 0;
+  // how far (relative to 1 + |bound|) a level's answer may lie outside the bounds its QP held
+  // hard: ACCEPT_FACTOR × the accuracy of the handles' tier (accept_tol in
+  // wbcbench/qp/hierarchy.py; this default is the default tier's of most backends)
+  double accept_tol = 1e-5;
 };
 
 // Solves the QP of a slot with one of the caller's solver handles.
@@ -101,11 +108,17 @@ class Hierarchy {
     Vector x;               // the level's optimum over the hierarchy's variable
     Vector qp_x, z;         // the QP's primal solution and the duals of its C rows
     bool has_z = false;
+    std::string refusal;    // why a reported solution was refused (see check)
   };
   // the slot a QP of handle `handle` is assembled into: kind 0 the level's own QP, 1 the QP of
   // a level held hard inside the next one's (same handle, another structure)
   QpBuffers& prepare(int handle, int kind, int n, int n_eq, int n_in, bool box);
   Answer call(LevelSolver& solver, const std::string& level);
+  // the largest relative violation x leaves on the hard constraints and the held inequalities
+  double held_violation(const HardConstraints& hard, const Vector& x) const;
+  // whether x, the answer of a QP whose held bounds were widened by relax, meets them to
+  // accept_tol_; if not, a is marked failed with the reason (see _checked)
+  bool check(const HardConstraints& hard, const Vector& x, double relax, Answer& a) const;
 
   HierarchyResult solve_weighted(const HardConstraints& hard,
                                  const std::vector<PriorityLevel>& soft, LevelSolver& solver);
@@ -130,6 +143,7 @@ class Hierarchy {
   int handle_ = -1, slot_ = -1;  // what prepare() filled last
   bool reshaped_ = false;        // whether prepare() re-made it
   double solver_seconds_ = 0.0;
+  double accept_tol_ = 1e-5;  // of the solve in progress (HierarchyOptions::accept_tol)
   // the inequalities the levels solved so far pass on, their slacks fixed (prev_C, prev_lo,
   // prev_hi of the reference)
   std::vector<Matrix> prev_C_;
