@@ -53,7 +53,9 @@ def residual_bound(level: Level, x: np.ndarray, x_ref: np.ndarray, residual: flo
 
 
 def own_residual(level: Level, x: np.ndarray) -> float:
-    return 0.0 if level.A is None or level.b is None else float(np.linalg.norm(level.A @ x - level.b))
+    if level.A is None or level.b is None:
+        return 0.0
+    return float(np.linalg.norm(level.A @ x - level.b))
 
 
 def assert_same(native: HlsResult, ref: HlsResult, levels: list[Level], what: str) -> None:
