@@ -27,8 +27,9 @@ which it solves in 660 iterations with a larger cap: which impl stops is decided
 DAQP declares a level QP that the levels above leave feasible only to rounding infeasible in
 one impl and not the other). So such a mismatch is allowed, on any number of states, when the
 failure is the backend's own verdict (an iteration cap, infeasibility or numerical trouble
-reported by the backend, or qpsolvers' "no solution found", which is how qpsolvers reports
-them); any other failure in one impl only is an error. Every answer an impl does give is
+reported by the backend, qpsolvers' "no solution found", which is how qpsolvers reports
+them, or qpOASES's "QP could not be solved", which it reports when its initial working set
+fails); any other failure in one impl only is an error. Every answer an impl does give is
 checked in full (the dynamics and torque limits above); a case where no state is solved by
 both impls compares nothing and is reported as skipped, with that reason.
 """
@@ -156,7 +157,8 @@ SLOW: dict[tuple[str, str], set[str]] = {
 
 #: a level QP the backend itself gave up on or declared infeasible (see the module docstring)
 BACKEND_VERDICT = re.compile(
-    r"level '[^']+': \S+: (max_iter|infeasible|numerical): |qpsolvers: no solution found$"
+    r"level '[^']+': \S+: (max_iter|infeasible|numerical): "
+    r"|qpsolvers: no solution found$|QP could not be solved!$"
 )
 
 
