@@ -2,21 +2,24 @@
 
 from __future__ import annotations
 
-import numpy as np
-import pytest
-from threadpoolctl import threadpool_limits
+import os
 
-from wbcbench import _native
-from wbcbench.qp import available_solvers
-from wbcbench.qp.registry import NAMED_SETTINGS
-from wbcbench.robots.loader import Robot, load_robot
+# One thread for every BLAS and OpenMP runtime, including those loaded after this file (scipy's
+# own OpenBLAS is loaded when the solver backends are first imported): see the limit below.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import numpy as np  # noqa: E402 - the thread counts above must be set before any BLAS loads
+import pytest  # noqa: E402
+import scipy.linalg  # noqa: E402, F401 - loads scipy's OpenBLAS before the limit below
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+from wbcbench import _native  # noqa: E402
+from wbcbench.qp import available_solvers  # noqa: E402
+from wbcbench.qp.registry import NAMED_SETTINGS  # noqa: E402
+from wbcbench.robots.loader import Robot, load_robot  # noqa: E402
 
 ROBOTS = ("tocabi_like", "comanplus_like")
-
-# One BLAS thread for the whole session, as every command of the harness runs its control loops:
-# a product's rounding depends on how BLAS splits it, and the equality tests compare answers of
-# nearly degenerate QPs, so the thread count must not depend on which test ran first.
-threadpool_limits(1)
 
 #: the impls every controller with a native tick is tested on
 IMPLS = ["python", "native"] if _native.BUILT else ["python"]
@@ -24,6 +27,25 @@ IMPLS = ["python", "native"] if _native.BUILT else ["python"]
 #: every installed solver that runs at any tier and mode: the backends and their qpsolvers
 #: wrappers (a named setting such as osqp_libdwbc runs at its own tier and mode only)
 ANY_TIER_SOLVERS = [s for s in available_solvers() if s not in NAMED_SETTINGS]
+
+# One BLAS thread for the whole session, as every command of the harness runs its control loops:
+# a product's rounding depends on how BLAS splits it, and the equality tests compare answers of
+# nearly degenerate QPs, so the thread count must not depend on which tests were collected or
+# ran first. Applied after the imports above, which load every BLAS the backends use (scipy's
+# own OpenBLAS among them: limited before it was loaded, it kept its default thread count unless
+# another test module happened to limit it again, and TO-OSF's pinv ablation on the wall states
+# moved by 10x with it); the environment above covers any runtime loaded later.
+threadpool_limits(1)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _one_blas_thread() -> None:
+    """Every runtime at one thread when the first test runs, whatever the collected modules
+    loaded in the meantime (asserted, so a new runtime that ignores the limit is noticed)."""
+    from threadpoolctl import threadpool_info
+
+    threadpool_limits(1)
+    assert all(info["num_threads"] == 1 for info in threadpool_info()), threadpool_info()
 
 
 @pytest.fixture(scope="session", params=ROBOTS)

@@ -20,10 +20,18 @@ way. So, on each state both impls solve:
   show on the same states (at least 1e-8), wherever the other strategy solves; an iterative
   backend's answers move with its stopping point, which the slacks and the checks above bound.
 
-A backend may fail on a state in one impl and not the other, or at another level (rounding-
-level differences of the data meet its stopping rule differently; DAQP declares a level QP that
-the levels above leave feasible only to rounding infeasible in one impl and not the other): at
-most two of the four states.
+A backend may fail on a state in one impl and not the other, or at another level: rounding-
+level differences of the data meet its stopping rule differently (PIQP through qpsolvers stops
+at its 250-iteration cap on the zero-torque-energy final QP, whose multipliers reach 2.6e6 and
+which it solves in 660 iterations with a larger cap: which impl stops is decided by rounding;
+DAQP declares a level QP that the levels above leave feasible only to rounding infeasible in
+one impl and not the other). So such a mismatch is allowed, on any number of states, when the
+failure is the backend's own verdict (an iteration cap, infeasibility or numerical trouble
+reported by the backend, qpsolvers' "no solution found", which is how qpsolvers reports
+them, or qpOASES's "QP could not be solved", which it reports when its initial working set
+fails); any other failure in one impl only is an error. Every answer an impl does give is
+checked in full (the dynamics and torque limits above); a case where no state is solved by
+both impls compares nothing and is reported as skipped, with that reason.
 """
 
 from __future__ import annotations
@@ -179,6 +187,13 @@ SLOW: dict[tuple[str, str], set[str]] = {
 }
 
 
+#: a level QP the backend itself gave up on or declared infeasible (see the module docstring)
+BACKEND_VERDICT = re.compile(
+    r"level '[^']+': \S+: (max_iter|infeasible|numerical): "
+    r"|qpsolvers: no solution found$|QP could not be solved!$"
+)
+
+
 def slacks(diagnostics: dict[str, float]) -> dict[str, float]:
     return {k: v for k, v in diagnostics.items() if k.startswith(("w.", "v.", "slack."))}
 
@@ -216,7 +231,7 @@ def test_native_equals_python(
     rng = np.random.default_rng(7)
     window = loaded.spec.metrics.window or (0.0, loaded.spec.duration)
     compared: list[float] = []
-    spread, mismatched, spread_known = 0.0, 0, False
+    spread, both_solved, spread_known = 0.0, 0, False
     for _ in range(4):
         q, v = grounded_state(robot, keyframe, frames, rng, q_noise=0.05, v_noise=0.2)
         t = float(rng.uniform(*window))
@@ -224,11 +239,16 @@ def test_native_equals_python(
         b = python.step(RobotState(robot, q, v), t)
         assert {"dynamics", "build", "solve", "crossing", "total"} <= set(a.timings)
         if a.ok != b.ok:
-            mismatched += 1
-            assert mismatched <= 2, (a.message, b.message)
+            # one impl's backend gave up where the other's did not: its own verdict, and the
+            # answer the other impl gave is still checked in full
+            failed, answer = (a, b) if not a.ok else (b, a)
+            assert BACKEND_VERDICT.search(failed.message), failed.message
+            assert base_residual(robot, q, v, answer, frames) <= 1e-6
+            assert np.all(np.abs(answer.tau) <= nat.ctx.tau_max * (1 + 1e-6) + 1e-6)
             continue
         if not b.ok:
             continue
+        both_solved += 1
         assert slacks(a.diagnostics).keys() == slacks(b.diagnostics).keys()
         for key, value in slacks(b.diagnostics).items():
             tol = 3e-6 if exact else 1e-3
@@ -246,6 +266,11 @@ def test_native_equals_python(
     if spread_known:  # (the other strategy may fail on every state with some backends)
         for diff in compared:
             assert diff <= max(1e-8, 10 * spread), (diff, spread)
+    if not both_solved:
+        pytest.skip(
+            f"{solver} solved none of the states in both impls: each answer an impl gave was "
+            "checked, none compared"
+        )
 
 
 #: the backends whose level QPs a native tick solves from C++ (``solver_calls: native``)
