@@ -12,8 +12,18 @@ optimum (cascade and null-space) differ by up to 0.3 relative on these states, f
 and the solvers' tolerances alone, and the null-space bases of the two impls differ the same
 way. So, on each state both impls solve:
 
-* every level's optimal slack norms agree (the lexicographic objective: well conditioned),
-  to 3e-6 relative with an active-set backend and 1e-3 with an iterative one;
+* every level's optimal slack norms agree, to 3e-6 relative with an active-set backend and 1e-3
+  with an iterative one, or to 10 times the difference the two Python strategies show on the
+  same state where that is larger. A level's optimum moves with the optimal slacks held from
+  the levels above, by their multipliers times the change (the optimal value is convex in the
+  held right-hand sides): rounding-level differences of a held slack whose multiplier is large
+  move it beyond 3e-6 (measured: w.p5 of lqp on a wall state 7.2e-6 apart under one BLAS
+  kernel, equal to that sensitivity bound), and the strategies' spread measures it;
+* a state on which either impl retried a level with the proximal term is not compared: that
+  impl solved the regularised level, whose optimum lies up to ½ρ‖x* − x_c‖² above the bare
+  level's (DAQP, whose automatic proximal iterations engage or not on a numerically singular
+  level Hessian by rounding, hits its iteration cap on the bare level in one impl and not the
+  other); both answers are still checked as below;
 * the native answer is what it must be: the floating-base dynamics met and the torques within
   their limits;
 * with an active-set backend, τ, q̈ and f agree to 10 times the spread the Python strategies
@@ -248,17 +258,23 @@ def test_native_equals_python(
             continue
         if not b.ok:
             continue
-        both_solved += 1
+        # each answer is what it must be: the floating-base rows met, torques in limits
+        for out in (a, b):
+            assert base_residual(robot, q, v, out, frames) <= 1e-6
+            assert np.all(np.abs(out.tau) <= nat.ctx.tau_max * (1 + 1e-6) + 1e-6)
         assert slacks(a.diagnostics).keys() == slacks(b.diagnostics).keys()
+        if a.diagnostics["prox_retries"] or b.diagnostics["prox_retries"]:
+            continue  # a regularised level: the impls solved different problems (docstring)
+        both_solved += 1
+        c = spread_ref.step(RobotState(robot, q, v), t)
+        same = c.ok and not c.diagnostics["prox_retries"]
         for key, value in slacks(b.diagnostics).items():
-            tol = 3e-6 if exact else 1e-3
-            assert abs(a.diagnostics[key] - value) <= tol * max(1.0, abs(value)), key
-        # the native answer is what it must be: the floating-base rows met, torques in limits
-        assert base_residual(robot, q, v, a, frames) <= 1e-6
-        assert np.all(np.abs(a.tau) <= nat.ctx.tau_max * (1 + 1e-6) + 1e-6)
+            tol = (3e-6 if exact else 1e-3) * max(1.0, abs(value))
+            if same and key in c.diagnostics:  # the optimum's sensitivity on this state
+                tol = max(tol, 10 * abs(c.diagnostics[key] - value))
+            assert abs(a.diagnostics[key] - value) <= tol, (key, a.diagnostics[key], value, tol)
         if exact:
-            c = spread_ref.step(RobotState(robot, q, v), t)
-            if c.ok:
+            if same:
                 spread_known = True
                 spread = max(spread, relative(c.tau, b.tau), relative(c.qdd, b.qdd))
             pairs = zip((a.tau, a.qdd, a.wrench), (b.tau, b.qdd, b.wrench), strict=True)
