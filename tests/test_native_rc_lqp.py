@@ -11,8 +11,9 @@ hierarchies whose map from data to optimum is badly conditioned, so on each stat
 solve
 
 * every level's optimal slack norms agree (LQP 1's and LQP 2's of the plan, as the step reports
-  them), to 3e-6 relative with an active-set backend and 1e-3 with an iterative one, and the
-  diagnostics and timing keys are the same;
+  them), to 3e-6 relative with an active-set backend and 1e-3 with an iterative one, the
+  diagnostics keys are the same, and so are the timing stages where both took the same branch,
+  but for the levels a QP may be solved through on one side only (:func:`check_stages`);
 * the native answer is what the step promises: eq. (30) met (unless the full-model LQP solved
   the tick), the floating-base rows met (exact assembly) and the torques within their limits;
 * with an active-set backend, the re-plan and fallback decisions agree, and τ, q̈ and f agree to
@@ -81,6 +82,15 @@ VARIANT_SOLVERS = ["quadprog", "daqp", "qpoases", "clarabel"]
 SPREAD_FACTOR = {"qpoases": 100.0}
 #: the step's timing stages every tick reports, in both impls
 STAGES = {"dynamics", "build", "solve", "total", "reduced", "lqp1", "lqp2", "fallback"}
+#: the levels a sequential LQP holds hard inside the next level's QP (``hard_if_feasible``: LQP
+#: 1's and the full-model LQP's contacts, LQP 2's eq. 30 or its limits) and solves on their own
+#: only when that QP is infeasible or its solver fails on it. Both paths lead to the same level
+#: optima, and which one a step takes is the solver's outcome on that QP: an iterative backend's
+#: can differ between the impls on data equal to round-off (measured: ProxQP on the re-planned
+#: LQP 1 of ahn_double_support solved the pair in 1 467 iterations in one impl and stopped at its
+#: 10 000-iteration cap in the other; on bit-identical data, ProxQP 0.8's AVX-512 build itself
+#: takes 3 223 or 3 224 iterations depending on what the process allocated before)
+HELD = {"lqp1.contacts", "lqp2.coupling", "lqp2.limits", "fallback.contacts"}
 STATES = 4
 
 
@@ -139,6 +149,23 @@ def within_limits(ctrl: Any, out: Any) -> bool:
     return bool(worst <= 1e-6)
 
 
+def level_keys(out: Any) -> set[str]:
+    """The names of the level QPs a step solved, from its per-level timings
+    (``solve.<lqp>.<level>``; ``solve.lqp1`` and the like are the sums)."""
+    return {key[6:] for key in out.timings if key.startswith("solve.") and key.count(".") >= 2}
+
+
+def check_stages(a: Any, b: Any) -> None:
+    """The native step ``a`` reports every timing stage of the Python step ``b`` (and more:
+    ``crossing``), and the same level QPs but for a :data:`HELD` level one of them solved on
+    its own."""
+    levels_a, levels_b = level_keys(a), level_keys(b)
+    stages_a = set(a.timings) - {f"solve.{name}" for name in levels_a}
+    stages_b = set(b.timings) - {f"solve.{name}" for name in levels_b}
+    assert stages_b <= stages_a, stages_b - stages_a
+    assert levels_a ^ levels_b <= HELD, (levels_a - levels_b, levels_b - levels_a)
+
+
 def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
     backend = solver.removeprefix("qpsolvers:")
     # coupling_priority's re-solve of LQP 1 is nearly degenerate: its optimum is not unique, and
@@ -189,7 +216,7 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
         assert a.diagnostics.keys() == b.diagnostics.keys()
         assert STAGES <= set(a.timings)
         if branch(a) == branch(b):  # (a level solution one impl's check rejected: a re-plan)
-            assert set(b.timings) <= set(a.timings)
+            check_stages(a, b)
         for key, value in slacks(b.diagnostics).items():
             if degenerate:
                 break

@@ -18,6 +18,14 @@ for quadprog, DAQP, Clarabel, PIQP and OSQP) it ran to its default 10 000 outer 
 2 s. The outer iterations keep ProxQP's default: converging solves need up to a few thousand
 (a hot ``qp_wbc`` tick on ``lee2021access_s1_accuracy``: 2 500–3 000), so an outer cap that
 stops the stall as quickly would fail them.
+
+Reproducibility: the AVX-512 and AVX2 builds that proxsuite 0.8 loads on such CPUs do not give
+bit-identical results on bit-identical data. Fresh objects in one process, solving the same
+``rc_lqp`` level QP (12 variables, 46 inequality rows), took 3 223 or 3 224 iterations, and
+the two solutions' ‖x‖² differed by 9e-10 relative. This happened with one thread and whatever
+the alignment of the input arrays; the generic build always gave one result. So a
+ProxQP answer is reproducible to its tolerance only, and an outcome near a threshold (a solve
+that ends just before or at the iteration cap) can change with what the process ran before.
 """
 
 from __future__ import annotations
