@@ -114,6 +114,14 @@ class Robot:
     #: a simulation that changes the model, see :func:`simulation_model`)
     mj_spec: mujoco.MjSpec | None = field(default=None, repr=False)
 
+    def __getstate__(self) -> dict[str, Any]:
+        """For a process that needs the models but not the spec (which does not pickle): the
+        parameter server's worker."""
+        return {**self.__dict__, "mj_spec": None}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
     @property
     def k(self) -> int:
         """Number of actuated joints."""

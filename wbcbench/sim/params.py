@@ -8,7 +8,10 @@ evaluates the task references and solves the QPs with the newest parameters. Thr
 * ``periodic:N`` — refreshed every N control ticks in the control loop, reused in between
   (deterministic: closed-loop runs are reproducible);
 * ``async`` — a separate worker process computes them continuously from the newest state the loop
-  publishes; the loop reads the newest complete set. Both directions go through one
+  publishes; the loop reads the newest complete set. The worker is a spawned interpreter, never
+  a fork of the loop's process (which may hold a native library's threads: a forked child would
+  wait for them forever); the server waits for it to be ready before the loop goes on, so its
+  start-up is not counted as staleness. Both directions go through one
   ``multiprocessing.shared_memory`` block: the state with a sequence counter, the parameters in a
   double buffer, each slot with its own sequence counter (odd while being written), so the loop
   never reads a torn set and never waits once the first set exists.
@@ -36,7 +39,7 @@ from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 
 MODES = ("inline", "periodic:N", "async")
-FIRST_SET_TIMEOUT = 30.0  # [s] for the worker's first parameter set
+FIRST_SET_TIMEOUT = 120.0  # [s] for the worker process to start
 
 
 @dataclass(frozen=True)
@@ -84,11 +87,11 @@ class ParamsRead:
 # -- shared-memory layout -----------------------------------------------------------------------
 
 # header slots (float64)
-_IN_SEQ, _IN_TICK, _LATEST, _STOP, _ERROR = 0, 1, 2, 3, 4
-_SEQ = (5, 6)
-_TICK = (7, 8)
-_TIME = (9, 10)
-_HEADER = 11
+_IN_SEQ, _IN_TICK, _LATEST, _STOP, _ERROR, _READY = 0, 1, 2, 3, 4, 5
+_SEQ = (6, 7)
+_TICK = (8, 9)
+_TIME = (10, 11)
+_HEADER = 12
 
 
 @dataclass(frozen=True)
@@ -133,17 +136,22 @@ def _write_slot(buf: np.ndarray, layout: _Layout, slot: int, p: OsfParams) -> No
 
 
 def _worker(
-    model: OsfModel, robot: Any, shm: SharedMemory, layout: _Layout, template_shapes: tuple
+    model: OsfModel, robot: Any, shm_name: str, layout: _Layout, template_shapes: tuple
 ) -> None:
     """Worker loop: compute parameters from the newest published state until told to stop.
 
-    Runs in a forked process that inherits the mapping of ``shm`` (attaching by name would
-    register the block a second time with the resource tracker).
+    Runs in a spawned process that attaches the block by name (it shares the parent's resource
+    tracker, so the block stays registered once and the parent unlinks it).
     """
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)  # as the loop's process: one BLAS thread
+    shm = SharedMemory(name=shm_name)
     try:
         buf = np.ndarray((layout.total,), dtype=np.float64, buffer=shm.buf)
         data = robot.pin_model.createData()
         s0 = layout.state_offset
+        buf[_READY] = 1.0
         last = -1.0
         while buf[_STOP] == 0.0:
             seq = float(buf[_IN_SEQ])
@@ -278,17 +286,24 @@ class ParameterServer:
         buf = np.ndarray((layout.total,), dtype=np.float64, buffer=shm.buf)
         buf[:] = 0.0
         buf[_LATEST] = 0.0
-        # fork: the worker inherits the robot model and the task objects without pickling
-        ctx = mp.get_context("fork")
+        ctx = mp.get_context("spawn")
         proc = ctx.Process(
             target=_worker,
-            args=(self.model, self.robot, shm, layout, shapes),
+            args=(self.model, self.robot, shm.name, layout, shapes),
             daemon=True,
             name="wbcbench-osf-params",
         )
         proc.start()
         self._shm, self._buf, self._layout, self._proc = shm, buf, layout, proc
         self._finalizer = weakref.finalize(self, _cleanup, proc, shm)
+        deadline = time.monotonic() + FIRST_SET_TIMEOUT
+        while buf[_READY] == 0.0:
+            if not proc.is_alive() or time.monotonic() > deadline:
+                self.close()
+                raise ControllerError(
+                    "the parameter worker process did not start; use params: inline"
+                )
+            time.sleep(0.01)
 
     def _publish(self, state: RobotState, tick: int) -> None:
         buf, layout = self._buf, self._layout
