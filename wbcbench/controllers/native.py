@@ -25,7 +25,7 @@ from wbcbench import _native
 from wbcbench.controllers.base import ControlOutput, SolveTimes
 from wbcbench.errors import ControllerError
 from wbcbench.qp import Problem, Solution, SolutionStatus
-from wbcbench.qp.hierarchy import ACCEPT_FACTOR
+from wbcbench.qp.hierarchy import accept_tol_for
 from wbcbench.qp.registry import solver_class
 from wbcbench.tasks.tasks import (
     ComTask,
@@ -196,7 +196,7 @@ def set_limits(settings: Any, tau_max: Any, Cw: Any, lw: Any, uw: Any, n_wrench:
 def accept_tol(ctx: Any) -> float:
     """The tolerance a native hierarchy holds its level answers to: the Python reference's
     (:func:`wbcbench.qp.hierarchy.accept_tol`) for the context's backend and tier."""
-    return ACCEPT_FACTOR * float(solver_class(ctx.solver).accuracy(ctx.tier))
+    return accept_tol_for(float(solver_class(ctx.solver).accuracy(ctx.tier)))
 
 
 #: why a tick whose build found a NaN failed

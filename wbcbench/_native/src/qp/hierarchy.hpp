@@ -117,7 +117,8 @@ class Hierarchy {
   // the largest relative violation x leaves on the hard constraints and the held inequalities
   double held_violation(const HardConstraints& hard, const Vector& x) const;
   // whether x, the answer of a QP whose held bounds were widened by relax, meets them to
-  // accept_tol_; if not, a is marked failed with the reason (see _checked)
+  // accept_tol_ relative to the problem's scale; if not, a is marked failed with the reason
+  // (see _checked)
   bool check(const HardConstraints& hard, const Vector& x, double relax, Answer& a) const;
 
   HierarchyResult solve_weighted(const HardConstraints& hard,
