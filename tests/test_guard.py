@@ -166,6 +166,20 @@ def _count_slowly(n: int, progress=None) -> int:
     return n
 
 
+def _where_and_what() -> tuple[str, str | None]:
+    return os.getcwd(), os.environ.get("WBCBENCH_GUARD_TEST")
+
+
+def test_the_child_sees_the_callers_folder_and_environment_now(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    assert call_with_deadline(_square, (1.0,), 60).ok  # the fork server is running
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("WBCBENCH_GUARD_TEST", "set after the server started")
+    outcome = call_with_deadline(_where_and_what, (), 60)
+    assert outcome.value == (str(tmp_path), "set after the server started")
+
+
 def test_arguments_that_do_not_pickle_are_a_failed_outcome() -> None:
     outcome = call_with_deadline(_square, (lambda: 1,), 30)
     assert not outcome.ok

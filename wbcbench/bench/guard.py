@@ -129,8 +129,13 @@ def _run_child(payload: bytes) -> None:
     """In the forked child: unpickle the call, run it, write the pickled outcome to the result
     file, and leave without the server's exit handlers (``os._exit``)."""
     try:
-        stdout, result_path, path, call = pickle.loads(payload)
-        sys.path[:] = path  # the caller's: its modules are found as it finds them
+        stdout, result_path, path, cwd, env, call = pickle.loads(payload)
+        # the caller's now, not when the server started: its modules, working folder and
+        # environment (a test's or a notebook's changes included)
+        sys.path[:] = path
+        os.chdir(cwd)
+        os.environ.clear()
+        os.environ.update({**env, **SERVER_ENV})
         if stdout:
             _redirect_stdout(stdout)
         result: tuple[str, Any]
@@ -363,7 +368,8 @@ def call_with_deadline(
             call = pickle.dumps((fn, args, kwargs), pickle.HIGHEST_PROTOCOL)
         except Exception as exc:
             return Guarded(None, False, f"the run's arguments do not pickle: {exc}")
-        payload = pickle.dumps((out, result_path, sys.path, call), pickle.HIGHEST_PROTOCOL)
+        caller = (sys.path, os.getcwd(), dict(os.environ))
+        payload = pickle.dumps((out, result_path, *caller, call), pickle.HIGHEST_PROTOCOL)
         try:
             status = fork_server().run(payload, seconds, waiting)
         except RuntimeError as exc:
