@@ -372,7 +372,7 @@ def call_with_deadline(
         payload = pickle.dumps((out, result_path, *caller, call), pickle.HIGHEST_PROTOCOL)
         try:
             status = fork_server().run(payload, seconds, waiting)
-        except RuntimeError as exc:
+        except (RuntimeError, OSError) as exc:  # the server could not start or died
             return Guarded(None, False, f"the wall-clock guard failed: {exc}")
         if status is None:
             outcome = Guarded(
