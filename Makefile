@@ -55,7 +55,9 @@ upgrade: $(LOCK_VENV)/bin/pip-compile
 # One worker per core (pytest-xdist); each worker runs its tests with one BLAS thread. The tests
 # run in a random order (pytest-randomly) whose seed is printed first: `make test SEED=<n>`
 # repeats that order. No test may take longer than pytest-timeout's limit (pyproject.toml).
-SEED ?= $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
+ifndef SEED
+SEED := $(shell od -An -N4 -tu4 /dev/urandom | tr -d ' ')
+endif
 
 test: $(STAMP)
 	@echo "== the test order's seed: $(SEED) (make test SEED=$(SEED) repeats it)"
