@@ -69,7 +69,8 @@ test: $(STAMP)
 NUMERICS := tests/test_native_equality.py tests/test_native_hierarchy.py tests/test_native_hls.py \
             tests/test_native_rc_lqp.py tests/test_native_reduced.py tests/test_native_solvers.py \
             tests/test_native_dynamics.py tests/test_oracle.py tests/test_hierarchy.py \
-            tests/test_hls.py tests/test_hqp.py tests/test_qp.py tests/test_qp_backends.py
+            tests/test_hls.py tests/test_hqp.py tests/test_kin_hqp.py tests/test_qp.py \
+            tests/test_qp_backends.py
 
 test-numerics: $(STAMP)
 	@echo "== numerics under OPENBLAS_CORETYPE=$${OPENBLAS_CORETYPE:-<detected>}," \

@@ -100,7 +100,7 @@ def _openmp(batch: int) -> float:
     """Pinocchio's inverse dynamics over a batch of states on two OpenMP threads."""
     import pinocchio as pin
 
-    model = pin.buildSampleModelHumanoidRandom()
+    model = pin.buildSampleModelHumanoid()
     pool = pin.ModelPool(model, 2)
     q = np.tile(pin.neutral(model)[:, None], (1, batch))
     v = np.ones((model.nv, batch))
@@ -141,7 +141,11 @@ def test_a_threaded_library_in_the_caller_does_not_hang_the_guarded_run(fn, arg)
     t0 = time.perf_counter()
     outcome = call_with_deadline(fn, (arg,), 60)
     assert outcome.ok, outcome.message
-    assert outcome.value == expected
+    # the same code on the same data, but not on as many threads (the child has one BLAS thread)
+    if isinstance(expected, float):
+        assert outcome.value == pytest.approx(expected, rel=1e-12)
+    else:
+        assert outcome.value == expected
     assert time.perf_counter() - t0 < 30
 
 
