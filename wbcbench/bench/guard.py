@@ -93,13 +93,15 @@ class ProgressFile:
 
     def __init__(self, path: str) -> None:
         self.path = path
+        self._fd: int | None = None  # opened on the first call, in the child (called per tick)
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"path": self.path, "_fd": None}
 
     def __call__(self, done: int, total: int) -> None:
-        fd = os.open(self.path, os.O_WRONLY)
-        try:
-            os.pwrite(fd, struct.pack("qq", done, total), 0)
-        finally:
-            os.close(fd)
+        if self._fd is None:
+            self._fd = os.open(self.path, os.O_WRONLY)
+        os.pwrite(self._fd, struct.pack("qq", done, total), 0)
 
     def read(self) -> tuple[int, int] | None:
         try:

@@ -44,6 +44,7 @@ Two options of the sequential strategies save QPs without changing the solution 
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Literal
 
@@ -252,23 +253,30 @@ def _relative_violation(Cx: Array, lower: Array, upper: Array) -> float:
     return float(max(0.0, np.fmax.reduce(below), np.fmax.reduce(above)))  # NaN never wins
 
 
+def _held_rows(
+    x: Array, hard: Constraints, prev_C: list[Array], prev_lo: list[Array], prev_hi: list[Array]
+) -> Iterator[tuple[Array, Array, Array]]:
+    """(C x, lower, upper) of each block of inequalities the levels hold: the hard constraints'
+    rows, the box (as x against its bounds) and the levels above's rows."""
+    if hard.C is not None and hard.C.shape[0]:
+        assert hard.l is not None and hard.u is not None
+        yield hard.C @ x, hard.l, hard.u
+    if hard.lb is not None or hard.ub is not None:
+        lower = hard.lb if hard.lb is not None else np.full(x.size, -np.inf)
+        upper = hard.ub if hard.ub is not None else np.full(x.size, np.inf)
+        yield x, lower, upper
+    for C, lo, hi in zip(prev_C, prev_lo, prev_hi, strict=True):
+        yield C @ x, lo, hi
+
+
 def _carried_violation(
     x: Array, hard: Constraints, prev_C: list[Array], prev_lo: list[Array], prev_hi: list[Array]
 ) -> float:
     """The largest relative violation x leaves on the inequalities the next levels inherit (the
     level just solved is not among them: its rows are held shifted by its own slacks, which x
     meets by construction)."""
-    worst = 0.0
-    if hard.C is not None and hard.C.shape[0]:
-        assert hard.l is not None and hard.u is not None
-        worst = _relative_violation(hard.C @ x, hard.l, hard.u)
-    if hard.lb is not None or hard.ub is not None:
-        lower = hard.lb if hard.lb is not None else np.full(x.size, -np.inf)
-        upper = hard.ub if hard.ub is not None else np.full(x.size, np.inf)
-        worst = max(worst, _relative_violation(x, lower, upper))
-    for C, lo, hi in zip(prev_C, prev_lo, prev_hi, strict=True):
-        worst = max(worst, _relative_violation(C @ x, lo, hi))
-    return worst
+    rows = _held_rows(x, hard, prev_C, prev_lo, prev_hi)
+    return max((_relative_violation(Cx, lo, hi) for Cx, lo, hi in rows), default=0.0)
 
 
 def _violation(Cx: Array, lower: Array, upper: Array) -> Array:
@@ -308,15 +316,8 @@ def _held_excess(
     if hard.A is not None and hard.b is not None and hard.A.shape[0]:
         # the equality rows' scale (the rows themselves are met by construction)
         parts.append((0.0, float(max(np.abs(hard.A @ x).max(), np.abs(hard.b).max()))))
-    if hard.C is not None and hard.C.shape[0]:
-        assert hard.l is not None and hard.u is not None
-        parts.append(_excess(hard.C @ x, hard.l, hard.u, relax))
-    if hard.lb is not None or hard.ub is not None:
-        lower = hard.lb if hard.lb is not None else np.full(x.size, -np.inf)
-        upper = hard.ub if hard.ub is not None else np.full(x.size, np.inf)
-        parts.append(_excess(x, lower, upper, relax))
-    for C, lo, hi in zip(prev_C, prev_lo, prev_hi, strict=True):
-        parts.append(_excess(C @ x, lo, hi, relax))
+    rows = _held_rows(x, hard, prev_C, prev_lo, prev_hi)
+    parts += [_excess(Cx, lo, hi, relax) for Cx, lo, hi in rows]
     if not parts:
         return 0.0
     return max(v for v, _ in parts) / (1.0 + max(scale for _, scale in parts))
