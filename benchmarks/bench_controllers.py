@@ -14,8 +14,8 @@ import pytest
 
 from wbcbench.controllers.registry import available_controllers
 from wbcbench.qp import available_solvers
+from wbcbench.runs import plan_run
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.closed_loop import RunSettings
 from wbcbench.sim.replay import Recording, record_states, replay
 
 WARMUP = 50
@@ -25,14 +25,14 @@ SOLVERS = [s for s in available_solvers() if ":" not in s]
 @functools.cache
 def recording(scenario: str = "tocabi_stand_sway") -> tuple[object, Recording]:
     loaded = load_scenario(scenario, ("duration=3",))
-    rec = record_states(loaded)
+    rec = record_states(plan_run(loaded, "qp_wbc"))
     keep = rec.t >= 2.0
     return loaded, Recording(rec.scenario, rec.t[keep], rec.q[keep], rec.v[keep])
 
 
 def split(controller: str, solver: str, mode: str = "hot") -> dict[str, float]:
     loaded, rec = recording()
-    timings = replay(loaded, rec, RunSettings(controller=controller, solver=solver, mode=mode))
+    timings = replay(plan_run(loaded, controller, solver, mode=mode, timing=True), rec)
     out = {s: timings.median_us(s, WARMUP) for s in ("dynamics", "build", "solve", "total")}
     out["solve_internal"] = timings.median_us("solve_internal", WARMUP)
     out["failures"] = float(timings.failures)

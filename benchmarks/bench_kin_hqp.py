@@ -26,6 +26,7 @@ from wbcbench.controllers.kin_hqp import KinHqp, KinHqpConfig
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp.hls_baselines import default_impls, scaling_series
 from wbcbench.robots.loader import load_robot
+from wbcbench.runs import plan_run, scenario_obstacles
 from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import (
     build_contacts,
@@ -34,8 +35,7 @@ from wbcbench.scenarios.load import (
     load_scenario,
     torque_limits,
 )
-from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
-from wbcbench.sim.setup import scenario_obstacles
+from wbcbench.sim.closed_loop import run_closed_loop
 
 SCENARIOS = ("rqr_reach", "rqr_gaze", "rqr_stress")
 FIG1_SIZES = (10, 20, 40, 60, 80, 100)
@@ -94,9 +94,7 @@ def closed_loop_table() -> None:
         for impl in default_impls():
             cfg = {**controller_settings(loaded, "kin_hqp"), "impl": impl}
             with threadpool_limits(1):
-                result = run_closed_loop(
-                    loaded, RunSettings(controller="kin_hqp", controller_config=cfg)
-                )
+                result = run_closed_loop(plan_run(loaded, controller="kin_hqp", config=cfg))
             _print_run(scenario, impl, loaded, result)
 
 
@@ -139,9 +137,7 @@ def fig1_table() -> None:
         loaded = load_scenario("rqr_gaze")
         cfg = {**controller_settings(loaded, "kin_hqp"), "hierarchy": hierarchy, **EQUALITY_ONLY}
         with threadpool_limits(1):
-            result = run_closed_loop(
-                loaded, RunSettings(controller="kin_hqp", controller_config=cfg)
-            )
+            result = run_closed_loop(plan_run(loaded, controller="kin_hqp", config=cfg))
         cols = result.log.arrays()
         print(
             f"  {hierarchy:<8} {_stats_us(cols['time.solve'][10:])}  "

@@ -29,8 +29,8 @@ from wbcbench import _native
 from wbcbench.controllers.registry import CONTROLLERS, make_controller
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.loader import load_robot
+from wbcbench.runs import scenario_context
 from wbcbench.scenarios.load import controller_settings, load_scenario
-from wbcbench.sim.setup import scenario_context
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tests.conftest import grounded_state

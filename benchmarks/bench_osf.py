@@ -24,9 +24,9 @@ import scipy.linalg  # noqa: F401  (its BLAS must be loaded before threads are l
 from threadpoolctl import threadpool_limits
 
 from wbcbench.qp import available_solvers
+from wbcbench.runs import plan_run
 from wbcbench.scenarios.load import LoadedScenario, load_scenario
 from wbcbench.scenarios.schema import ContactSpec, CopBox
-from wbcbench.sim.closed_loop import RunSettings
 from wbcbench.sim.replay import Recording, record_states, replay
 
 threadpool_limits(1)
@@ -40,7 +40,7 @@ COMPARE = ("daqp", "quadprog", "proxqp", "qpoases", "piqp")
 def recording(scenario: str, t0: float, t1: float) -> tuple[LoadedScenario, Recording]:
     """States of a closed-loop osf_hqp run of ``scenario`` kept for t0 ≤ t < t1."""
     loaded = load_scenario(scenario, (f"duration={t1}",))
-    rec = record_states(loaded, RunSettings(controller="osf_hqp", solver=SOLVER))
+    rec = record_states(plan_run(loaded, controller="osf_hqp", solver=SOLVER))
     keep = (rec.t >= t0) & (rec.t < t1)
     return loaded, Recording(rec.scenario, rec.t[keep], rec.q[keep], rec.v[keep])
 
@@ -54,8 +54,7 @@ def medians(
 ) -> dict[str, float]:
     """Median [µs] of every stage the controller reports, over the recording; ``<stage>.iqr``
     and ``<stage>.p99`` beside each."""
-    settings = RunSettings(controller=controller, solver=solver, controller_config=config)
-    timings = replay(loaded, rec, settings)
+    timings = replay(plan_run(loaded, controller, solver, config=config, timing=True), rec)
     out = {stage: timings.median_us(stage, WARMUP) for stage in timings.stages}
     for stage in timings.stages:
         q25, q75 = (timings.quantile_us(stage, q, WARMUP) for q in (0.25, 0.75))

@@ -34,8 +34,8 @@ import numpy as np
 import pytest
 
 from wbcbench.qp import available_solvers
+from wbcbench.runs import Run, plan_run
 from wbcbench.scenarios.load import LoadedScenario, load_scenario
-from wbcbench.sim.closed_loop import RunSettings
 from wbcbench.sim.replay import Recording, ReplayTimings, record_states, replay
 
 WARMUP = 50
@@ -72,21 +72,21 @@ def recording(scenario: str, robot: str = "") -> tuple[LoadedScenario, Recording
     if robot:
         overrides.append(f"robot={robot}")
     loaded = load_scenario(scenario, tuple(overrides))
-    rec = record_states(loaded, RunSettings(controller="lqp", solver="quadprog"))
+    rec = record_states(plan_run(loaded, controller="lqp", solver="quadprog"))
     return loaded, rec.window(START, TICKS)
 
 
-def _settings(controller: str, solver: str, impl: str | None = None) -> RunSettings:
+def _run(loaded: LoadedScenario, controller: str, solver: str, impl: str | None = None) -> Run:
     impl = impl or IMPL
     config = {"impl": impl} if impl else {}
-    return RunSettings(controller=controller, solver=solver, mode="hot", controller_config=config)
+    return plan_run(loaded, controller, solver, mode="hot", config=config, timing=True)
 
 
 def run(
     scenario: str, controller: str, solver: str, robot: str = "", impl: str | None = None
 ) -> ReplayTimings:
     loaded, rec = recording(scenario, robot)
-    return replay(loaded, rec, _settings(controller, solver, impl))
+    return replay(_run(loaded, controller, solver, impl), rec)
 
 
 @dataclass
@@ -116,7 +116,7 @@ def run_counted(scenario: str, controller: str, solver: str) -> Counted:
         counted.fallbacks.append(float(diagnostics.get("fallback", 0.0)))
         return ""
 
-    counted.timings = replay(loaded, rec, _settings(controller, solver), on_step=keep)
+    counted.timings = replay(_run(loaded, controller, solver), rec, on_step=keep)
     return counted
 
 

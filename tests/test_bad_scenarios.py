@@ -17,7 +17,8 @@ import pytest
 
 from wbcbench.cli import main
 from wbcbench.errors import ScenarioError
-from wbcbench.scenarios.load import check_against_robot, load_scenario, load_scenario_robot
+from wbcbench.runs import check_scenario
+from wbcbench.scenarios.load import load_scenario, load_scenario_robot
 
 CORPUS = Path(__file__).resolve().parent / "data" / "bad_scenarios"
 INDEX: dict[str, str] = json.loads((CORPUS / "index.json").read_text())
@@ -34,7 +35,7 @@ def test_a_corrupted_scenario_is_a_clean_error_naming_file_and_key(name: str) ->
     path = CORPUS / name
     with pytest.raises(ScenarioError) as exc:
         loaded = load_scenario(path)
-        check_against_robot(loaded, load_scenario_robot(loaded))
+        check_scenario(loaded, load_scenario_robot(loaded))
     message = str(exc.value)
     key = INDEX[name]
     prefix = f"{path}: {key}" if key else f"{path}: "

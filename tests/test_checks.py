@@ -28,9 +28,8 @@ from wbcbench.dynamics.state import RobotState
 from wbcbench.qp import Problem, make_solver
 from wbcbench.qp.validity import relative_kkt
 from wbcbench.robots.loader import load_robot
+from wbcbench.runs import plan_run, scenario_context
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.closed_loop import RunSettings
-from wbcbench.sim.setup import scenario_context
 
 SCENARIO = "tocabi_stand_sway"
 SHORT = ["duration=0.05", "metrics.window=[0.0, 0.05]", "metrics.timing_warmup=5"]
@@ -117,8 +116,8 @@ def test_wbcbench_run_catches_every_lie(
 ) -> None:
     lying_daqp(lie)
     loaded = load_scenario(SCENARIO, SHORT)
-    settings = RunSettings(controller="qp_wbc", solver="daqp", controller_config={"impl": "python"})
-    record = execute(loaded, settings, ResultsStore(tmp_path))
+    run = plan_run(loaded, "qp_wbc", "daqp", config={"impl": "python"})
+    record = execute(run, ResultsStore(tmp_path))
     assert record is not None
     assert record.row["status"] in ("failed", "fell"), record.row
     assert "reported solved but relative primal residual" in record.row["message"]

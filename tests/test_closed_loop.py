@@ -11,8 +11,9 @@ import pytest
 from wbcbench.bench.results import ResultsStore
 from wbcbench.bench.runner import execute
 from wbcbench.cli import main
+from wbcbench.runs import plan_run
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
+from wbcbench.sim.closed_loop import run_closed_loop
 
 
 @pytest.mark.slow
@@ -20,7 +21,7 @@ from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
 def test_stand_sway_tracks_the_com_within_half_a_millimetre(scenario: str, tmp_path: Path) -> None:
     loaded = load_scenario(scenario)
     store = ResultsStore(tmp_path)
-    record = execute(loaded, RunSettings(controller="qp_wbc", solver="proxqp"), store)
+    record = execute(plan_run(loaded, controller="qp_wbc", solver="proxqp"), store)
     assert record is not None
     assert record.row["status"] == "ok", record.row["message"]
     assert not record.row["fell"]
@@ -47,7 +48,7 @@ def test_motors_too_weak_to_stand_end_in_a_fall() -> None:
         "tocabi_stand_sway",
         ("duration=3", "limits.torque_scale=0.02", "sim.max_consecutive_failures=5000"),
     )
-    result = run_closed_loop(loaded, RunSettings(solver="proxqp"))
+    result = run_closed_loop(plan_run(loaded, "qp_wbc", "proxqp"))
     assert result.status in ("fell", "failed")
     assert result.fell or result.failures > 0
 
@@ -69,7 +70,7 @@ def test_solver_failures_hold_the_last_torque_and_are_counted(
         return Solution(SolutionStatus.FAILED, solver="proxqp", message="injected failure")
 
     monkeypatch.setattr(base.QPSolver, "solve", flaky)
-    result = run_closed_loop(loaded, RunSettings(solver="proxqp"))
+    result = run_closed_loop(plan_run(loaded, "qp_wbc", "proxqp"))
     assert result.status == "failed"
     assert result.failures == 15
     assert "15 failed ticks in a row: proxqp: failed: injected failure" in result.message
@@ -83,10 +84,10 @@ def test_solver_failures_hold_the_last_torque_and_are_counted(
 def test_a_torque_beyond_its_limit_fails_the_tick(monkeypatch: pytest.MonkeyPatch) -> None:
     """After 20 good ticks the controller commands twice the knee's limit: a failed tick, as a
     solver failure is (the last torque held), though the step reports success."""
-    from wbcbench.sim import closed_loop
+    from wbcbench.runs import Run
 
     loaded = load_scenario("tocabi_stand_sway", ("duration=0.2", "sim.max_consecutive_failures=15"))
-    real_build = closed_loop.build_checked_controller
+    real_build = Run.make_controller
 
     def build(*args, **kwargs):
         controller = real_build(*args, **kwargs)
@@ -103,8 +104,8 @@ def test_a_torque_beyond_its_limit_fails_the_tick(monkeypatch: pytest.MonkeyPatc
         controller.step = step
         return controller
 
-    monkeypatch.setattr(closed_loop, "build_checked_controller", build)
-    result = run_closed_loop(loaded, RunSettings(solver="proxqp"))
+    monkeypatch.setattr(Run, "make_controller", build)
+    result = run_closed_loop(plan_run(loaded, "qp_wbc", "proxqp"))
     assert result.status == "failed" and result.failures == 15
     limit = result.tau_max[result.robot.joint_index("L_Knee")]
     assert result.message == (

@@ -17,6 +17,7 @@ import pinocchio as pin
 import pytest
 
 from wbcbench import _native
+from wbcbench.bench.run_metrics import run_metrics
 from wbcbench.controllers.kin_hqp import (
     GazeTask,
     GazeTerm,
@@ -26,16 +27,15 @@ from wbcbench.controllers.kin_hqp import (
 )
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import WbcBenchError
-from wbcbench.metrics.run_metrics import run_metrics
 from wbcbench.qp import Problem, make_solver
 from wbcbench.qp.hls import Level
 from wbcbench.robots.loader import Robot
+from wbcbench.runs import plan_run, scenario_context, scenario_obstacles
 from wbcbench.scenarios.load import (
     controller_settings,
     load_scenario,
 )
-from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
-from wbcbench.sim.setup import scenario_context, scenario_obstacles
+from wbcbench.sim.closed_loop import run_closed_loop
 from wbcbench.tasks.collision import (
     Box,
     CollisionModel,
@@ -517,7 +517,7 @@ def test_applies_only_to_kinematic_scenarios() -> None:
 
 def _run(scenario: str, on_step: Any = None) -> tuple[Any, dict[str, Array], dict[str, float]]:
     loaded = load_scenario(scenario)
-    result = run_closed_loop(loaded, RunSettings(controller="kin_hqp"), on_step=on_step)
+    result = run_closed_loop(plan_run(loaded, controller="kin_hqp"), on_step=on_step)
     assert result.status == "ok", result.message
     assert result.failures == 0
     rows = run_metrics(result, [], loaded.spec.metrics.window, loaded.spec.metrics.timing_warmup)

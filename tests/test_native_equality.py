@@ -39,8 +39,8 @@ from wbcbench.errors import ControllerError
 from wbcbench.qp import Problem
 from wbcbench.qp.settings import TIER_EPS as TIERS_EPS
 from wbcbench.robots.loader import load_robot
+from wbcbench.runs import scenario_context
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.setup import scenario_context
 
 from .conftest import ANY_TIER_SOLVERS, grounded_state
 

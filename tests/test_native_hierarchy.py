@@ -316,8 +316,8 @@ def test_native_solver_calls_equal_python_calls(
     1.3e-3)."""
     from wbcbench.controllers.registry import make_controller
     from wbcbench.robots.loader import load_robot
+    from wbcbench.runs import scenario_context
     from wbcbench.scenarios.load import load_scenario
-    from wbcbench.sim.setup import scenario_context
 
     scenario, keyframe = CASES[case]
     loaded = load_scenario(scenario)
@@ -375,8 +375,8 @@ def test_rqr_has_no_native_tick() -> None:
     from wbcbench.controllers.registry import make_controller
     from wbcbench.errors import ControllerError
     from wbcbench.robots.loader import load_robot
+    from wbcbench.runs import scenario_context
     from wbcbench.scenarios.load import load_scenario
-    from wbcbench.sim.setup import scenario_context
 
     loaded = load_scenario("tocabi_stand_sway")
     ctx = scenario_context(loaded, load_robot(loaded.spec.robot), solver="daqp")

@@ -45,8 +45,8 @@ from wbcbench.controllers.registry import make_controller
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp import available_solvers
 from wbcbench.robots.loader import load_robot
+from wbcbench.runs import scenario_context
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.setup import scenario_context
 
 from .conftest import ANY_TIER_SOLVERS, grounded_state
 from .test_native_equality import relative

@@ -14,8 +14,8 @@ from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
 from wbcbench.robots.loader import Robot
+from wbcbench.runs import scenario_context
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.setup import scenario_context
 
 CONTROLLERS = ["qp_wbc", "hqp", "to_osf", "osf_hqp", "lqp", "rc_lqp"]
 SCENARIOS = ["tocabi_stand_sway", "ahn_double_support", "ahn_single_support"]

@@ -17,12 +17,12 @@ from wbcbench.controllers.base import ControllerContext
 from wbcbench.controllers.hqp import Hqp, HqpConfig
 from wbcbench.controllers.osf_hqp import OsfHqp, OsfHqpConfig
 from wbcbench.controllers.to_osf import OsfControllerBase, ToOsf, ToOsfConfig
-from wbcbench.dynamics import osf
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.metrics.consistency import dc_error
 from wbcbench.metrics.oracle import forward_dynamics
 from wbcbench.robots.loader import Robot
+from wbcbench.tasks import osf
 from wbcbench.tasks.contacts import PlaneContact
 from wbcbench.tasks.tasks import (
     ComTask,

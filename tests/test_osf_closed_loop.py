@@ -16,10 +16,9 @@ import scipy.linalg  # noqa: F401  (load its BLAS before limiting threads)
 from threadpoolctl import threadpool_limits
 
 from wbcbench.dynamics.state import RobotState
-from wbcbench.robots.loader import load_robot
+from wbcbench.runs import plan_run
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.closed_loop import RunResult, RunSettings, run_closed_loop
-from wbcbench.sim.setup import build_controller
+from wbcbench.sim.closed_loop import RunResult, run_closed_loop
 
 threadpool_limits(1)
 
@@ -27,7 +26,7 @@ threadpool_limits(1)
 @functools.cache
 def run(scenario: str, controller: str, *overrides: str) -> RunResult:
     loaded = load_scenario(scenario, overrides)
-    return run_closed_loop(loaded, RunSettings(controller=controller, solver="daqp"))
+    return run_closed_loop(plan_run(loaded, controller=controller, solver="daqp"))
 
 
 def mean_error(result: RunResult, column: str, window: tuple[float, float]) -> float:
@@ -104,8 +103,8 @@ def stacked_task_singular_value(keyframe: str) -> float:
     """Smallest singular value of Table I's motion tasks (CoM + pelvis, both hand poses, upper
     body) stacked, restricted to the null space of the foot contacts, at a keyframe."""
     loaded = load_scenario("lee2021iros_table1")
-    robot = load_robot(loaded.spec.robot, base_dir=loaded.path.parent)
-    controller = build_controller(loaded, RunSettings(controller="hqp", solver="daqp"), robot)
+    run = plan_run(loaded, "hqp", "daqp")
+    robot, controller = run.robot, run.make_controller()
     q, v = robot.keyframe(keyframe)
     state = RobotState(robot, q, v, robot.pin_model.createData())
     controller.start(state)

@@ -11,16 +11,15 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from wbcbench import _native
-from wbcbench.bench.runner import run_impl
+from wbcbench.controllers.params import ParameterServer, ParamsMode, parse_params_mode
 from wbcbench.controllers.registry import make_controller
-from wbcbench.dynamics.osf import OsfModel, OsfParams, group_levels
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.robots.loader import Robot
+from wbcbench.runs import plan_run, scenario_context
 from wbcbench.scenarios.load import build_tasks, load_scenario
-from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
-from wbcbench.sim.params import ParameterServer, ParamsMode, parse_params_mode
-from wbcbench.sim.setup import scenario_context
+from wbcbench.sim.closed_loop import run_closed_loop
+from wbcbench.tasks.osf import OsfModel, OsfParams, group_levels
 
 from .conftest import random_standing_state
 
@@ -107,11 +106,11 @@ def test_closed_loop_with_async_params_cleans_up(tocabi: Robot) -> None:
     loaded = load_scenario("tocabi_stand_sway", ["duration=0.2"])
     before = set(mp.active_children())
     result = run_closed_loop(
-        loaded,
-        RunSettings(
+        plan_run(
+            loaded,
             controller="osf_hqp",
             solver="daqp",
-            controller_config={"params": "async", "impl": "python"},
+            config={"params": "async", "impl": "python"},
         ),
     )
     assert result.status == "ok", result.message
@@ -183,14 +182,10 @@ def test_native_async_uses_the_set_of_a_published_state(tocabi: Robot, name: str
 @native_only
 def test_native_async_closed_loop(tocabi: Robot) -> None:
     loaded = load_scenario("tocabi_stand_sway", ["duration=0.2"])
-    assert (
-        run_impl(loaded, RunSettings(controller="to_osf", controller_config={"params": "async"}))
-        == "native"
-    )
+    assert plan_run(loaded, "to_osf", config={"params": "async"}).impl == "native"
     threads = os_threads()
     result = run_closed_loop(
-        loaded,
-        RunSettings(controller="to_osf", solver="daqp", controller_config={"params": "async"}),
+        plan_run(loaded, controller="to_osf", solver="daqp", config={"params": "async"}),
     )
     assert result.status == "ok", result.message
     stale = result.log.arrays()["diag.params_staleness"]

@@ -10,8 +10,8 @@ from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
 from wbcbench.qp import Problem, make_solver
 from wbcbench.robots.loader import Robot
+from wbcbench.runs import scenario_context
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.setup import scenario_context
 
 from .conftest import ANY_TIER_SOLVERS, IMPLS, random_standing_state
 

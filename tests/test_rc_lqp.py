@@ -19,9 +19,9 @@ from wbcbench.controllers.rc_lqp import RcLqp, RcLqpConfig
 from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
 from wbcbench.robots.loader import Robot
+from wbcbench.runs import plan_run, scenario_context
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
-from wbcbench.sim.setup import scenario_context
+from wbcbench.sim.closed_loop import run_closed_loop
 
 SCENARIOS = ["ahn_double_support", "ahn_single_support"]
 # the reference backend of both controllers (an active-set method: exact up to round-off)
@@ -205,8 +205,7 @@ def test_lqp_sequential_equals_cascade_and_holds_hard_priorities(
 def closed_loop(scenario: str, controller: str, assembly: str = "exact") -> dict[str, float]:
     loaded = load_scenario(scenario, ("duration=2.5",))
     cfg = {"assembly": assembly} if controller == "rc_lqp" else {}
-    settings = RunSettings(controller=controller, solver="quadprog", controller_config=cfg)
-    res = run_closed_loop(loaded, settings)
+    res = run_closed_loop(plan_run(loaded, controller, "quadprog", config=cfg))
     arrays = res.log.arrays()
     window = slice(1000, None)  # after the first second (the motions start at t = 1 s)
     out = {"fell": float(res.status != "ok"), "failures": float(res.failures)}
@@ -236,7 +235,7 @@ def test_closed_loop_one_chain_with_waist_arms_and_head_holds_its_posture() -> N
     loaded = load_scenario("comanplus_stand_sway", ("duration=1.2",))
     result = {}
     for controller in ("lqp", "rc_lqp"):
-        res = run_closed_loop(loaded, RunSettings(controller=controller, solver=SOLVER))
+        res = run_closed_loop(plan_run(loaded, controller=controller, solver=SOLVER))
         assert res.status == "ok" and res.failures == 0, (controller, res.message)
         arrays = res.log.arrays()
         keys = ("err.com.pos", "err.l_hand.pos", "err.r_hand.pos", "err.posture.joint")

@@ -11,8 +11,8 @@ from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import UnknownNameError
 from wbcbench.qp import available_solvers, solver_class
 from wbcbench.robots.loader import Robot
+from wbcbench.runs import scenario_context
 from wbcbench.scenarios.load import load_scenario
-from wbcbench.sim.setup import scenario_context
 
 from .conftest import random_standing_state
 

@@ -17,7 +17,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from wbcbench.errors import ScenarioError
-from wbcbench.scenarios.load import check_against_robot, load_scenario, load_scenario_robot
+from wbcbench.runs import check_scenario
+from wbcbench.scenarios.load import load_scenario, load_scenario_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 BASES = ("tocabi_stand_sway", "ahn_single_support", "lee2021iros_table1", "rqr_reach")
@@ -59,7 +60,7 @@ def validate(path: Path) -> None:
     """Load and check against the robot; a ScenarioError must name the file."""
     try:
         loaded = load_scenario(path)
-        check_against_robot(loaded, load_scenario_robot(loaded))
+        check_scenario(loaded, load_scenario_robot(loaded))
     except ScenarioError as exc:
         assert str(exc).startswith(f"{path}: "), str(exc)
 

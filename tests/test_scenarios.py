@@ -11,10 +11,10 @@ import pytest
 from wbcbench.cli import main
 from wbcbench.errors import ScenarioError
 from wbcbench.robots.loader import load_robot, third_party_robots
+from wbcbench.runs import check_scenario
 from wbcbench.scenarios.load import (
     SCENARIO_DIR,
     available_scenarios,
-    check_against_robot,
     load_scenario,
     load_scenario_robot,
 )
@@ -33,7 +33,7 @@ def variant(tmp_path: Path, old: str, new: str, name: str = "bad.yaml") -> Path:
 def error_of(path: Path, overrides: tuple[str, ...] = ()) -> str:
     with pytest.raises(ScenarioError) as exc:
         loaded = load_scenario(path, overrides)
-        check_against_robot(loaded, load_robot(loaded.spec.robot))
+        check_scenario(loaded, load_robot(loaded.spec.robot))
     return str(exc.value)
 
 
@@ -43,7 +43,7 @@ def test_shipped_scenarios_validate(name: str) -> None:
     missing = third_party_robots().get(loaded.spec.robot)
     if missing:
         pytest.skip(f"{loaded.spec.robot}: {missing} is not installed (wbcbench[robots])")
-    check_against_robot(loaded, load_robot(loaded.spec.robot))
+    check_scenario(loaded, load_robot(loaded.spec.robot))
     assert len(loaded.hash) == 12
 
 
@@ -194,7 +194,7 @@ def test_the_readme_scenario_example_validates(tmp_path: Path) -> None:
     example = tmp_path / "example.yaml"
     example.write_text(section[start : section.index("```", start)])
     loaded = load_scenario(example)
-    check_against_robot(loaded, load_scenario_robot(loaded))
+    check_scenario(loaded, load_scenario_robot(loaded))
     assert loaded.spec.robot == "tocabi_like" and len(loaded.spec.contacts) == 2
 
 
@@ -226,7 +226,7 @@ def test_contact_geometry_box_needs_a_frame_of_the_simulated_model(tmp_path: Pat
         "  - {frame: l_sole, mu: 0.5, fmin: 30, contact_geometry: box}",
     )
     loaded = load_scenario(path)
-    check_against_robot(loaded, load_robot(loaded.spec.robot))  # l_sole is a site: accepted
+    check_scenario(loaded, load_robot(loaded.spec.robot))  # l_sole is a site: accepted
     bad = tmp_path / "boxes.yaml"
     bad.write_text(path.read_text().replace("contact_geometry: box", "contact_geometry: boxes"))
     assert error_of(bad) == (
@@ -241,7 +241,7 @@ def test_self_collision_exclude_list(tmp_path: Path) -> None:
 
     loaded = load_scenario(BASE, ("sim.self_collision={exclude: [[L_Knee_link, R_Knee_link]]}",))
     robot = load_robot(loaded.spec.robot)
-    check_against_robot(loaded, robot)
+    check_scenario(loaded, robot)
     model = prepare_model(robot, loaded)
     assert model.nexclude == robot.mj_model.nexclude + 1
     pair = {model.body(int(model.exclude_signature[-1]) >> 16).name,

@@ -149,7 +149,7 @@ solver_comparison:
   solvers: [all]
 """
     p = plan(write(tmp_path, text))
-    planned = {(j.settings.solver, j.settings.tier, j.settings.mode) for j in p.jobs}
+    planned = {(j.run.settings.solver, j.run.settings.tier, j.run.settings.mode) for j in p.jobs}
     assert {x for x in planned if x[0] == "osqp_libdwbc"} == {("osqp_libdwbc", "default", "hot")}
     assert len({x for x in planned if x[0] == "osqp"}) == 4
     note = (
@@ -160,7 +160,7 @@ solver_comparison:
     assert f"solver_comparison{note}" in p.not_applicable
     assert "osqp_libdwbc" in p.comparison_solvers
     # run only the setting's row
-    p.jobs = [j for j in p.jobs if j.settings.solver == "osqp_libdwbc"]
+    p.jobs = [j for j in p.jobs if j.run.settings.solver == "osqp_libdwbc"]
     p.comparison = None
     report = run_sweep(p, tmp_path / "out", show_progress=False)
     assert report.computed == 1 and not report.failed
@@ -182,8 +182,8 @@ def test_every_controller_that_applies_is_planned_and_skips_are_recorded(tmp_pat
     p = plan(path)
     spec = load_scenario("tocabi_stand_sway").spec
     applies = {n for n, cls in CONTROLLERS.items() if not cls.applies_to(spec)}
-    assert {j.settings.controller for j in p.jobs} == applies
-    assert {(j.settings.solver, j.skip_reason) for j in p.jobs} == {
+    assert {j.run.settings.controller for j in p.jobs} == applies
+    assert {(j.run.settings.solver, j.skip_reason) for j in p.jobs} == {
         ("proxqp", ""),
         ("daqp", "not today"),
     }
@@ -198,7 +198,7 @@ def test_a_controller_with_its_own_solver_runs_once_whatever_the_backends(tmp_pa
         "    solvers: [proxqp, daqp]\n    tiers: [default, high]\n    impls: [python]\n",
     )
     p = plan(path)
-    assert [(j.settings.solver, j.settings.tier) for j in p.jobs] == [("hls", "default")]
+    assert [(j.run.settings.solver, j.run.settings.tier) for j in p.jobs] == [("hls", "default")]
     assert "tracking[0] · kin_hqp: solves with its own hls; solvers do not apply" in (
         p.not_applicable
     )
@@ -308,18 +308,18 @@ def test_robots_run_a_scenario_once_per_robot_each_its_own_hash_and_recording(
         "    controllers: [lqp, rc_lqp]\n    solvers: [osqp]\n    record_with: [lqp]\n",
     )
     p = plan(path)
-    robots = [j.loaded.spec.robot for j in p.jobs]
+    robots = [j.run.scenario.spec.robot for j in p.jobs]
     assert robots == ["tocabi_dof20"] * 2 + ["tocabi_like"] * 2 + ["tocabi_dof45"] * 2
-    assert [j.overrides for j in p.jobs[::2]] == [
+    assert [j.run.scenario.overrides for j in p.jobs[::2]] == [
         ("robot=tocabi_dof20",),
         ("robot=tocabi_like",),
         ("robot=tocabi_dof45",),
     ]
-    assert len({j.loaded.hash for j in p.jobs}) == 3
+    assert len({j.run.scenario.hash for j in p.jobs}) == 3
     assert {j.options["recorder"] for j in p.jobs} == {"lqp"}
     # the row's settings keep the overrides, so a report can rebuild each run's scenario
     assert p.jobs[-1].extra["overrides"] == ["robot=tocabi_dof45"]
-    ids = {run_id(j.loaded, j.settings, "v", extra=j.extra) for j in p.jobs}
+    ids = {run_id(j.run, "v", extra=j.extra) for j in p.jobs}
     assert len(ids) == 6  # resume tells every robot's rows apart
     # one recording per robot: the cache key is the scenario hash
     assert len(p.timing_by_scenario) == 3
@@ -386,9 +386,9 @@ def test_a_recorder_that_falls_inside_the_window_hands_over_to_the_next(
 
     real = timing.record_states
 
-    def falls_early(loaded, settings, *args, **kwargs):
-        rec = real(loaded, settings, *args, **kwargs)
-        if settings.controller == "qp_wbc":  # as if it fell after 0.1 s
+    def falls_early(run):
+        rec = real(run)
+        if run.controller == "qp_wbc":  # as if it fell after 0.1 s
             return rec.window(0.0, 100)
         return rec
 
@@ -488,7 +488,7 @@ def test_impls_run_each_impl_of_a_native_controller_once_and_a_python_one_once(
         "    impls: [native, python, default]\n",
     )
     configs = sorted(
-        (j.settings.controller, json.dumps(j.settings.controller_config)) for j in plan(path).jobs
+        (j.run.controller, json.dumps(j.run.settings.controller_config)) for j in plan(path).jobs
     )
     assert configs == [
         ("kin_hqp", "{}"),

@@ -14,9 +14,10 @@ from wbcbench.controllers.registry import CONTROLLERS
 from wbcbench.errors import ModelError
 from wbcbench.robots.loader import SOLE_BOX_HEIGHT, load_robot, third_party_robots
 from wbcbench.robots.third_party import THIRD_PARTY
+from wbcbench.runs import check_scenario, plan_run
 from wbcbench.scenarios.initial import initial_state
-from wbcbench.scenarios.load import check_against_robot, load_scenario, load_scenario_robot
-from wbcbench.sim.closed_loop import RunSettings, prepare_model, run_closed_loop
+from wbcbench.scenarios.load import load_scenario, load_scenario_robot
+from wbcbench.sim.closed_loop import prepare_model, run_closed_loop
 
 MISSING = {name: dist for name, dist in third_party_robots().items() if dist}
 SCENARIOS = {
@@ -61,8 +62,8 @@ def test_scenario_validates_and_stands(name: str) -> None:
     if name in MISSING:
         pytest.skip(f"{MISSING[name]} is not installed (wbcbench[robots])")
     loaded = load_scenario(SCENARIOS[name], ("duration=0.3",))
-    check_against_robot(loaded, load_scenario_robot(loaded))
-    result = run_closed_loop(loaded, RunSettings(controller="qp_wbc", solver="proxqp"))
+    check_scenario(loaded, load_scenario_robot(loaded))
+    result = run_closed_loop(plan_run(loaded, controller="qp_wbc", solver="proxqp"))
     assert result.status == "ok", result.message
     assert result.failures == 0
 
@@ -74,7 +75,7 @@ def test_every_torque_controller_holds_the_robot(name: str, controller: str) -> 
     if name in MISSING:
         pytest.skip(f"{MISSING[name]} is not installed (wbcbench[robots])")
     loaded = load_scenario(SCENARIOS[name], ("duration=1",))
-    result = run_closed_loop(loaded, RunSettings(controller=controller, solver="daqp"))
+    result = run_closed_loop(plan_run(loaded, controller=controller, solver="daqp"))
     assert not result.fell, result.message
 
 
@@ -113,12 +114,12 @@ def test_mesh_feet_need_the_sole_box_to_stand() -> None:
     stands, and the run's settings say which feet were boxes."""
     overrides = ("duration=0.3", *(f"contacts.{i}.contact_geometry=model" for i in range(2)))
     loaded = load_scenario("talos_mesh_stand_sway", overrides)
-    result = run_closed_loop(loaded, RunSettings(controller="lqp", solver="daqp"))
+    result = run_closed_loop(plan_run(loaded, controller="lqp", solver="daqp"))
     assert result.fell
     assert "the foot is simulated with its mesh" in result.message  # and the fix is named
     assert "'contact_geometry: box'" in result.message
     loaded = load_scenario("talos_mesh_stand_sway", ("duration=0.3",))
-    result = run_closed_loop(loaded, RunSettings(controller="lqp", solver="daqp"))
+    result = run_closed_loop(plan_run(loaded, controller="lqp", solver="daqp"))
     assert result.status == "ok" and result.failures == 0, result.message
 
 
@@ -140,7 +141,7 @@ def test_rc_lqp_row_split_on_talos_is_structural() -> None:
 @pytest.mark.parametrize("solver", ["proxqp", "daqp"])
 def test_rc_lqp_on_talos_tracks_as_lqp_does(solver: str) -> None:
     loaded = load_scenario("talos_stand_sway", ("duration=1",))
-    result = run_closed_loop(loaded, RunSettings(controller="rc_lqp", solver=solver))
+    result = run_closed_loop(plan_run(loaded, controller="rc_lqp", solver=solver))
     assert result.status == "ok" and result.failures == 0, result.message
     log = result.log.arrays()
     for hand in ("l_hand", "r_hand"):
@@ -185,5 +186,5 @@ def test_validate_offers_the_exclude_list_of_talos_overlapping_bodies(capsys) ->
     assert main(["validate", "talos_stand_sway", "--set", excluded]) == 0
     assert "overlap" not in capsys.readouterr().out
     loaded = load_scenario("talos_stand_sway", ("duration=0.3", excluded))
-    result = run_closed_loop(loaded, RunSettings(controller="lqp", solver="daqp"))
+    result = run_closed_loop(plan_run(loaded, controller="lqp", solver="daqp"))
     assert result.status == "ok" and result.failures == 0, result.message

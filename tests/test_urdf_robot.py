@@ -12,9 +12,10 @@ import pytest
 from wbcbench.cli import main
 from wbcbench.errors import ModelError, ScenarioError
 from wbcbench.robots.loader import load_robot
+from wbcbench.runs import check_scenario, plan_run
 from wbcbench.scenarios.initial import initial_state
-from wbcbench.scenarios.load import check_against_robot, load_scenario, load_scenario_robot
-from wbcbench.sim.closed_loop import ContactSensor, RunSettings, run_closed_loop
+from wbcbench.scenarios.load import load_scenario, load_scenario_robot
+from wbcbench.sim.closed_loop import ContactSensor, run_closed_loop
 
 _INERTIA = '<inertia ixx="{i}" iyy="{i}" izz="{i}" ixy="0" ixz="0" iyz="0"/>'
 
@@ -161,7 +162,7 @@ def test_joint_map_puts_the_soles_on_the_floor(tmp_path: Path) -> None:
     path = write_scenario(tmp_path, write_humanoid(tmp_path))
     loaded = load_scenario(path)
     robot = load_scenario_robot(loaded)
-    check_against_robot(loaded, robot)
+    check_scenario(loaded, robot)
     q, v = initial_state(loaded, robot)
     assert not v.any()
     assert q[7 + robot.joint_index("l_knee")] == 0.6
@@ -204,7 +205,7 @@ def test_validate_and_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
 
 def test_settle_starts_the_run_at_rest(tmp_path: Path) -> None:
     path = write_scenario(tmp_path, write_humanoid(tmp_path))
-    result = run_closed_loop(load_scenario(path), RunSettings(controller="qp_wbc"))
+    result = run_closed_loop(plan_run(load_scenario(path), controller="qp_wbc"))
     assert result.status == "ok", result.message
     cols = result.log.arrays()
     assert np.all(cols["wrench_sim.l_sole.fz"] > 0) and np.all(cols["wrench_sim.r_sole.fz"] > 0)
@@ -266,7 +267,7 @@ def test_initial_state_errors_name_the_key_and_the_choices(
     path.write_text(text.replace(text.split("\n")[3], f"initial: {initial}"))
     with pytest.raises(ScenarioError) as exc:
         loaded = load_scenario(path)
-        check_against_robot(loaded, load_scenario_robot(loaded))
+        check_scenario(loaded, load_scenario_robot(loaded))
     assert str(exc.value) == f"{path}: {key}: {message.replace('{dir}', str(tmp_path))}"
 
 

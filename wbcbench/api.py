@@ -1,6 +1,11 @@
-"""The small Python API: a scenario's controller to step by hand, and a results folder to read.
+"""The Python API: runs of scenarios, a scenario's controller to step by hand, a results
+folder to read.
 
     import wbcbench
+
+    res = wbcbench.run("tocabi_stand_sway", ["qp_wbc", "osf_hqp"], ["proxqp", "daqp"])
+    res.runs      # one row per run: status, ticks, wall time [s], ...
+    res.metrics   # long form: run_id, task, metric, value, unit
 
     ctrl = wbcbench.make_controller("tocabi_stand_sway", "osf_hqp", solver="daqp")
     q, v = ctrl.initial_state()
@@ -19,6 +24,7 @@ contact frame, the contact's reaction on the robot.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,10 +34,11 @@ from wbcbench.controllers.base import Controller, ControlOutput
 from wbcbench.dynamics.state import RobotState
 from wbcbench.report.load import Results, load_results
 from wbcbench.robots.loader import Robot
+from wbcbench.runs import plan_matrix, plan_run
 from wbcbench.scenarios.initial import initial_state
-from wbcbench.scenarios.load import LoadedScenario, load_scenario, load_scenario_robot
+from wbcbench.scenarios.load import LoadedScenario
 
-__all__ = ["Results", "ScenarioController", "load_results", "make_controller"]
+__all__ = ["Results", "ScenarioController", "load_results", "make_controller", "run"]
 
 
 class ScenarioController:
@@ -84,10 +91,11 @@ def make_controller(
     *,
     tier: str = "default",
     mode: str = "hot",
-    overrides: list[str] | None = None,
+    overrides: Sequence[str] = (),
     **config: Any,
 ) -> ScenarioController:
-    """A scenario's controller, ready to step.
+    """A scenario's controller, ready to step; validated as every run is
+    (:func:`wbcbench.runs.plan_run`).
 
     Args:
         scenario: a scenario name (``wbcbench list``) or a path to a YAML file.
@@ -98,17 +106,74 @@ def make_controller(
         **config: the controller's settings on top of the scenario's (e.g. ``impl="python"``,
             ``params="async"``); unknown keys are errors that name the valid ones.
     """
-    from wbcbench.bench.sweep import default_solver
-    from wbcbench.sim.closed_loop import RunSettings
-    from wbcbench.sim.setup import build_controller
-
-    loaded = load_scenario(str(scenario), list(overrides or []))
-    robot = load_scenario_robot(loaded)
-    settings = RunSettings(
-        controller=controller,
-        solver=default_solver() if solver == "default" else solver,
-        tier=tier,
-        mode=mode,
-        controller_config=dict(config),
+    planned = plan_run(
+        scenario, controller, solver, tier=tier, mode=mode, config=config, overrides=overrides
     )
-    return ScenarioController(loaded, robot, build_controller(loaded, settings, robot))
+    return ScenarioController(planned.scenario, planned.robot, planned.make_controller())
+
+
+def run(
+    scenario: str | Path | Sequence[str | Path],
+    controllers: str | Sequence[str] = "qp_wbc",
+    solvers: str | Sequence[str] = "default",
+    *,
+    tier: str = "default",
+    mode: str = "cold",
+    overrides: Sequence[str] = (),
+    out: str | Path = "results/api",
+    progress: Callable[[str, int, int], None] | None = None,
+) -> Results:
+    """Closed-loop (or kinematic) runs of every scenario × controller × solver, stored in
+    ``out`` as ``wbcbench run`` stores them, and returned.
+
+    Each run is validated before the first simulation step, checked as a sweep's (every QP
+    reported solved must meet its optimality conditions) and runs under the wall-clock guard; a
+    run already in ``out`` (same scenario, settings and code) is read back, not run again.
+
+    Args:
+        scenario: one or more scenario names or YAML paths.
+        controllers: registered controller names; one that does not apply to a scenario is
+            left out.
+        solvers: QP backend names, or ``default``; a controller that solves with its own
+            solver (kin_hqp) runs once, with it.
+        tier, mode: the backends' accuracy tier and mode.
+        overrides: ``KEY=VALUE`` scenario overrides, as ``wbcbench run --set``.
+        out: the results folder (created; appended to).
+        progress: called with (run label, ticks done, ticks in the run) as a run goes.
+
+    Returns:
+        The rows of these runs: ``runs`` (status ``ok``/``fell``/``failed``/``error``,
+        ``ticks``, ``sim_duration_s`` [s], ``wall_time_s`` [s], ``message``, ...) and
+        ``metrics`` (long form; every value's unit in the ``unit`` column: tracking errors in
+        m, rad or rad/s per task, times in µs).
+    """
+    from wbcbench.bench.results import ResultsStore
+    from wbcbench.bench.runner import code_version, execute, run_id
+
+    names = [scenario] if isinstance(scenario, str | Path) else list(scenario)
+    runs, _ = plan_matrix(
+        names,
+        [controllers] if isinstance(controllers, str) else list(controllers),
+        [solvers] if isinstance(solvers, str) else list(solvers),
+        tier,
+        mode,
+        overrides,
+    )
+    store = ResultsStore(out)
+    version = code_version(store)
+    ids = []
+    for planned in runs:
+        ids.append(run_id(planned, version))
+        report = None
+        if progress is not None:
+            label = planned.label
+
+            def report(done: int, total: int, label: str = label) -> None:
+                progress(label, done, total)
+
+        execute(planned, store, progress=report)
+    store.refresh_mirror()
+    results = load_results(out)
+    results.runs = results.runs[results.runs["run_id"].isin(ids)].reset_index(drop=True)
+    results.metrics = results.metrics[results.metrics["run_id"].isin(ids)].reset_index(drop=True)
+    return results

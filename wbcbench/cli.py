@@ -71,29 +71,18 @@ def _cmd_list(args: argparse.Namespace) -> int:
     return 0
 
 
-def _load_checked(names: Sequence[str], overrides: Sequence[str] = ()) -> list:
-    from wbcbench.scenarios.load import check_against_robot, load_scenario, load_scenario_robot
-
-    out = []
-    for name in names:
-        loaded = load_scenario(name, list(overrides))
-        robot = load_scenario_robot(loaded)
-        check_against_robot(loaded, robot)
-        out.append(loaded)
-    return out
-
-
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from wbcbench.runs import Planner
     from wbcbench.scenarios.initial import initial_state, self_collisions, sole_mismatches
-    from wbcbench.scenarios.load import build_contact, load_scenario_robot
+    from wbcbench.scenarios.load import build_contact
 
-    for loaded in _load_checked(args.scenarios, args.set):
+    planner = Planner()
+    for loaded, robot in [planner.scenario(name, args.set) for name in args.scenarios]:
         spec = loaded.spec
         print(
             f"ok  {loaded.path}  ({spec.robot}, {len(spec.tasks)} tasks, "
             f"{len(spec.contacts)} contacts, {spec.duration:g} s, hash {loaded.hash})"
         )
-        robot = load_scenario_robot(loaded)
         for note in robot.notes:
             print(f"    note: {note}")
         q0 = initial_state(loaded, robot)[0]
@@ -116,45 +105,33 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_names(controllers: Sequence[str], solvers: Sequence[str], tier: str, mode: str) -> None:
-    """Look every name up before the first simulation step."""
-    from wbcbench.controllers.registry import controller_class
-    from wbcbench.qp import make_solver
-
-    for c in controllers:
-        controller_class(c)
-    for s in solvers:
-        make_solver(s, tier=tier, mode=mode)
-
-
-def _run_matrix(
-    scenarios: list,
+def _planned(
+    scenarios: Sequence[str],
     controllers: Sequence[str],
     solvers: Sequence[str],
     tier: str,
     mode: str,
-    out: Path,
-    show_progress: bool,
-) -> pd.DataFrame:
+    overrides: Sequence[str] = (),
+) -> list:
+    """The runs of the matrix (:func:`wbcbench.runs.plan_matrix`), its notes printed."""
+    from wbcbench.runs import plan_matrix
+
+    runs, notes = plan_matrix(scenarios, controllers, solvers, tier, mode, overrides)
+    for note in notes:
+        print(f"note: {note}")
+    return runs
+
+
+def _run_matrix(runs: list, out: Path, show_progress: bool) -> pd.DataFrame:
     from wbcbench.bench.results import ResultsStore
     from wbcbench.bench.runner import code_version, execute, run_id
-    from wbcbench.controllers.registry import controller_class
-    from wbcbench.sim.closed_loop import RunSettings
 
     store = ResultsStore(out)
-    runs_of: dict[str, list[tuple[str, str]]] = {}  # controller → its (solver, tier) runs
-    for c in controllers:
-        own = controller_class(c).own_solver  # it runs once, with its own solver
-        if own and list(solvers) != [default_solver()]:
-            print(f"note: {c} solves with its own {own}; --solver does not apply to it")
-        runs_of[c] = [(own, "default")] if own else [(s, tier) for s in solvers]
-    combos = [(sc, c, s, t) for sc in scenarios for c in controllers for s, t in runs_of[c]]
     version, planned = code_version(store), []
-    for i, (loaded, controller, solver, run_tier) in enumerate(combos, 1):
-        settings = RunSettings(controller=controller, solver=solver, tier=run_tier, mode=mode)
-        planned.append(run_id(loaded, settings, version))
-        label = f"[{i}/{len(combos)}] {loaded.name} · {controller} · {solver}"
-        n_ticks = round(loaded.spec.duration * loaded.spec.control_rate)
+    for i, run in enumerate(runs, 1):
+        planned.append(run_id(run, version))
+        label = f"[{i}/{len(runs)}] {run.name} · {run.controller} · {run.settings.solver}"
+        n_ticks = round(run.scenario.spec.duration * run.scenario.spec.control_rate)
         with tqdm(
             total=n_ticks, desc=label, unit="tick", disable=not show_progress, leave=False
         ) as bar:
@@ -164,7 +141,7 @@ def _run_matrix(
                     bar.n = done
                     bar.refresh()
 
-            record = execute(loaded, settings, store, progress=progress)
+            record = execute(run, store, progress=progress)
         if record is None:
             print(f"{label}: already in {out}, skipped")
         else:
@@ -172,8 +149,8 @@ def _run_matrix(
             note = f" — {row['message']}" if row.get("message") else ""
             print(f"{label}: {row['status']}{note}")
     store.refresh_mirror()
-    runs = store.runs()  # this command's rows, not what the folder held before
-    return summary_table(runs[runs["run_id"].isin(planned)], store.metrics())
+    runs_table = store.runs()  # this command's rows, not what the folder held before
+    return summary_table(runs_table[runs_table["run_id"].isin(planned)], store.metrics())
 
 
 def summary_table(runs: pd.DataFrame, metrics: pd.DataFrame) -> pd.DataFrame:
@@ -204,27 +181,23 @@ def _print_table(table: pd.DataFrame) -> None:
         print(table.to_string(index=False, float_format=lambda x: f"{x:.4g}"))
 
 
-def native_solvers() -> list[str]:
-    from wbcbench.bench.sweep import native_solvers as native
+def _check_solvers(solvers: Sequence[str], tier: str, mode: str) -> None:
+    """Look every solver name up (and its tier and mode) before anything runs."""
+    from wbcbench.qp import make_solver
 
-    return native()
-
-
-def default_solver() -> str:
-    from wbcbench.bench.sweep import default_solver as default
-
-    return default()
+    for s in solvers:
+        make_solver(s, tier=tier, mode=mode)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from wbcbench.qp import default_solver
+
     controllers = args.controller or ["qp_wbc"]
     solvers = args.solver or [default_solver()]
-    _check_names(controllers, solvers, args.tier, args.mode)
-    scenarios = _load_checked([args.scenario], args.set)
+    _check_solvers(solvers, args.tier, args.mode)
+    runs = _planned([args.scenario], controllers, solvers, args.tier, args.mode, args.set)
     out = Path(args.out)
-    table = _run_matrix(
-        scenarios, controllers, solvers, args.tier, args.mode, out, not args.no_progress
-    )
+    table = _run_matrix(runs, out, not args.no_progress)
     _print_table(table)
     print(f"results in {out}/ (runs.csv, metrics.csv, logs/, provenance.json)")
     return 0 if (table["status"] == "ok").all() else 1
@@ -324,15 +297,15 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.scenario or args.controller or args.solver:
         # the former matrix form: closed-loop runs of the named combinations
         from wbcbench.controllers.registry import available_controllers
+        from wbcbench.qp import available_backends
         from wbcbench.scenarios.load import available_scenarios
 
-        scenarios = _load_checked(args.scenario or available_scenarios())
         controllers = args.controller or available_controllers()
-        solvers = args.solver or native_solvers()
-        _check_names(controllers, solvers, args.tier, args.mode)
-        table = _run_matrix(
-            scenarios, controllers, solvers, args.tier, args.mode, out, not args.no_progress
-        )
+        solvers = args.solver or available_backends()
+        _check_solvers(solvers, args.tier, args.mode)
+        scenarios = args.scenario or available_scenarios()
+        runs = _planned(scenarios, controllers, solvers, args.tier, args.mode)
+        table = _run_matrix(runs, out, not args.no_progress)
         _print_table(table)
     else:
         plan = plan_sweep(*load_sweep_file(args.sweep))
@@ -376,8 +349,10 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         raise WbcBenchError(f"{path}: no such problem file")
     check_tier(args.tier)
     check_mode(args.mode)
-    solvers = args.solver or native_solvers()
-    _check_names([], solvers, args.tier, args.mode)
+    from wbcbench.qp import available_backends
+
+    solvers = args.solver or available_backends()
+    _check_solvers(solvers, args.tier, args.mode)
     print(describe_problem(path))
     _print_table(replay_problem(path, solvers, args.tier, args.mode))
     return 0

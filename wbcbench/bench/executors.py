@@ -20,20 +20,20 @@ from wbcbench.errors import UnknownNameError
 if TYPE_CHECKING:
     from wbcbench.bench.runner import RunRecord
     from wbcbench.bench.sweep import Job
+    from wbcbench.runs import Run
 
 EXECUTORS = ("serial", "dask")
 
 
 def run_tracking(
-    scenario_path: str,
-    overrides: tuple[str, ...],
-    settings: Any,
+    run: Run,
     rid: str,
     version: str,
     log_every: int = 1,
     check_factor: float | None = None,
 ) -> RunRecord:
-    """One closed-loop run from plain arguments (what a dask worker receives).
+    """One closed-loop run (what a dask worker receives: the run pickles without its robot,
+    which the worker loads again).
 
     The record carries no ``RunResult`` (it holds the robot's native models, which do not
     pickle); its per-tick log keeps every ``log_every``-th tick. ``check_factor``: see
@@ -42,11 +42,9 @@ def run_tracking(
     from threadpoolctl import threadpool_limits
 
     from wbcbench.bench.runner import compute_tracking
-    from wbcbench.scenarios.load import load_scenario
 
     with threadpool_limits(1):
-        loaded = load_scenario(scenario_path, list(overrides))
-        record = compute_tracking(loaded, settings, rid, version, check_factor=check_factor)
+        record = compute_tracking(run, rid, version, check_factor=check_factor)
     record.result = None
     if record.log and log_every > 1:
         record.log = {k: v[::log_every] for k, v in record.log.items()}
@@ -54,9 +52,7 @@ def run_tracking(
 
 
 def run_tracking_guarded(
-    scenario_path: str,
-    overrides: tuple[str, ...],
-    settings: Any,
+    run: Run,
     rid: str,
     version: str,
     log_every: int,
@@ -73,26 +69,22 @@ def run_tracking_guarded(
     from wbcbench.bench.guard import call_with_deadline, can_guard, tracking_deadline
     from wbcbench.bench.results import printed_path
     from wbcbench.bench.runner import ended_record
-    from wbcbench.scenarios.load import load_scenario
 
-    args = (scenario_path, overrides, settings, rid, version, log_every, check_factor)
+    args = (run, rid, version, log_every, check_factor)
     if not can_guard():
         return run_tracking(*args)
-    loaded = load_scenario(scenario_path, list(overrides))
-    seconds = wall_limit_s or tracking_deadline(loaded.spec.duration)
+    seconds = wall_limit_s or tracking_deadline(run.scenario.spec.duration)
     printed = printed_path(folder, rid) if folder else None
     outcome = call_with_deadline(run_tracking, args, seconds, printed)
     if outcome.ok:
         record: RunRecord = outcome.value
         return record
-    return ended_record(loaded, settings, rid, version, "failed", outcome.message)
+    return ended_record(run, rid, version, "failed", outcome.message)
 
 
 def _arguments(job: Job, rid: str, version: str, folder: str | None) -> tuple[Any, ...]:
     return (
-        job.scenario_path,
-        job.overrides,
-        job.settings,
+        job.run,
         rid,
         version,
         int(job.options.get("log_every", 1)),

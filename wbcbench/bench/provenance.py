@@ -13,14 +13,14 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-import wbcbench
-
 REPO = Path(__file__).resolve().parents[2]
 
 #: the tested dependency set: every distribution, direct and transitive, at an exact version
 LOCK = REPO / "requirements" / "lock.txt"
 
 #: installed but never part of the lock: the project itself and the installer
+#: the installed package's folder (its source is hashed into every row's code version)
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
 _NOT_LOCKED = frozenset({"wbcbench", "pip"})
 
 #: distributions whose versions every results file records
@@ -132,7 +132,7 @@ def source_hash() -> str:
     """12 hex digits of the content of the package's code: every ``.py``, model and C++ file
     and the built native module, uncommitted edits included, so a result is tied to the code
     that produced it (docs, tests and results do not count)."""
-    digest = tree_hash(Path(wbcbench.__file__).resolve().parent)
+    digest = tree_hash(PACKAGE_DIR)
     try:  # an editable install keeps the compiled module outside the source folder
         from wbcbench._native import _core
 
@@ -207,7 +207,7 @@ def describe_lock_status(status: dict[str, Any]) -> list[str]:
 
 def provenance() -> dict[str, Any]:
     return {
-        "wbcbench": wbcbench.__version__,
+        "wbcbench": metadata.version("wbcbench"),
         "git_commit": git_commit(),
         "source_hash": source_hash(),
         "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),

@@ -19,10 +19,11 @@ from typing import Any
 from wbcbench.bench.checks import CHECK_FACTOR, ReportedCheck
 from wbcbench.bench.provenance import cpu_model
 from wbcbench.bench.results import ResultsStore
+from wbcbench.bench.run_metrics import run_metrics
 from wbcbench.errors import WbcBenchError
-from wbcbench.metrics.run_metrics import run_metrics
-from wbcbench.scenarios.load import LoadedScenario, build_contacts, load_scenario_robot
-from wbcbench.sim.closed_loop import RunResult, RunSettings, run_closed_loop
+from wbcbench.runs import Run
+from wbcbench.scenarios.load import build_contacts
+from wbcbench.sim.closed_loop import RunResult, run_closed_loop
 
 
 def code_version(store: ResultsStore) -> str:
@@ -36,38 +37,17 @@ def code_version(store: ResultsStore) -> str:
     return f"{info['wbcbench']}+src.{info['source_hash']}@{info['git_commit']}"
 
 
-def run_impl(loaded: LoadedScenario, settings: RunSettings) -> str:
-    """``native`` or ``python``: the implementation the run's controller runs (its setting, else
-    native where it has a native tick and the module is built); "" for an unknown controller."""
-    from pydantic import ValidationError
-
-    from wbcbench.controllers.base import resolve_impl
-    from wbcbench.controllers.registry import CONTROLLERS
-    from wbcbench.errors import ControllerError
-    from wbcbench.scenarios.load import controller_settings
-
-    cls = CONTROLLERS.get(settings.controller)
-    if cls is None:
-        return ""
-    merged = {**controller_settings(loaded, settings.controller), **settings.controller_config}
-    try:
-        return cls.impl_for(cls.Config.model_validate(merged))
-    except (ValidationError, ControllerError):  # the run itself will fail and say why
-        requested = merged.get("impl")
-        return resolve_impl(cls, requested if isinstance(requested, str) else None)
-
-
 def run_id(
-    loaded: LoadedScenario,
-    settings: RunSettings,
+    run: Run,
     version: str,
     seed: int = 0,
     extra: dict[str, Any] | None = None,
 ) -> str:
     """The key a rerun skips by; ``extra`` holds any further setting (e.g. a timing window)."""
+    settings = run.settings
     parts: list[Any] = [
-        loaded.name,
-        loaded.hash,
+        run.scenario.name,
+        run.scenario.hash,
         settings.controller,
         settings.controller_config,
         settings.solver,
@@ -75,7 +55,7 @@ def run_id(
         settings.mode,
         seed,
         version.split("@", 1)[0],
-        run_impl(loaded, settings),
+        run.impl,
     ]
     if extra:  # absent for plain tracking runs, so their ids stay what they were
         parts.append(extra)
@@ -84,8 +64,7 @@ def run_id(
 
 
 def base_row(
-    loaded: LoadedScenario,
-    settings: RunSettings,
+    run: Run,
     rid: str,
     version: str,
     kind: str = "tracking",
@@ -94,6 +73,7 @@ def base_row(
     """The identifying columns of a run row. ``settings`` also keeps what produced it: the
     scenario's overrides and duration, the simulated feet when a contact replaces the model's
     geometry by its sole box, and when and where it ran."""
+    loaded, settings = run.scenario, run.settings
     boxes = {c.frame: c.contact_geometry for c in loaded.spec.contacts}
     info = {
         "overrides": list(loaded.overrides),
@@ -111,11 +91,11 @@ def base_row(
         scenario_hash=loaded.hash,
         robot=loaded.spec.robot,
         controller=settings.controller,
-        controller_config=json.dumps(settings.controller_config, sort_keys=True),
+        controller_config=settings.config_json,
         solver=settings.solver,
         tier=settings.tier,
         mode=settings.mode,
-        impl=run_impl(loaded, settings),
+        impl=run.impl,
         seed=0,
         code_version=version,
         kind=kind,
@@ -132,8 +112,7 @@ class RunRecord:
 
 
 def ended_record(
-    loaded: LoadedScenario,
-    settings: RunSettings,
+    run: Run,
     rid: str,
     version: str,
     status: str,
@@ -142,14 +121,13 @@ def ended_record(
     extra: dict[str, Any] | None = None,
 ) -> RunRecord:
     """The row of a run that produced nothing (stopped by the guard, skipped): no metrics."""
-    row = base_row(loaded, settings, rid, version, kind, extra)
+    row = base_row(run, rid, version, kind, extra)
     row.update(status=status, fell=False, message=message, ticks=0, failures=0)
     return RunRecord(row, [], None)
 
 
 def compute_tracking(
-    loaded: LoadedScenario,
-    settings: RunSettings,
+    run: Run,
     rid: str,
     version: str,
     progress: Callable[[int, int], None] | None = None,
@@ -165,24 +143,21 @@ def compute_tracking(
 
     Never raises: an exception becomes a row with status ``error`` and its message.
     """
-    spec = loaded.spec
-    row = base_row(loaded, settings, rid, version)
-    base = dict(scenario=loaded.name, controller=settings.controller, solver=settings.solver)
+    spec, settings = run.scenario.spec, run.settings
+    row = base_row(run, rid, version)
+    base = dict(scenario=run.name, controller=settings.controller, solver=settings.solver)
     metrics: list[dict[str, Any]] = []
     result: RunResult | None = None
     log = None
     try:
-        robot = load_scenario_robot(loaded)
         checker = ReportedCheck(check_factor) if check_factor else None
         result = run_closed_loop(
-            loaded,
-            settings,
-            robot=robot,
+            run,
             progress=progress,
             wrap_solver=checker.wrap if checker else None,
             check=checker,
         )
-        contacts = build_contacts(spec, robot)
+        contacts = build_contacts(spec, run.robot)
         window = spec.metrics.window
         for m in run_metrics(result, contacts, window, spec.metrics.timing_warmup):
             metrics.append(dict(run_id=rid, **base, **m.__dict__))
@@ -204,15 +179,15 @@ def compute_tracking(
     return RunRecord(row, metrics, result, log)
 
 
-def store_record(store: ResultsStore, loaded: LoadedScenario, record: RunRecord) -> None:
+def store_record(store: ResultsStore, run: Run, record: RunRecord) -> None:
     """Append a finished run to the store (with the scenario in the provenance)."""
+    loaded = run.scenario
     store.record_scenario(loaded.name, loaded.hash, str(loaded.path))
     store.add_run(record.row, record.metrics, record.log)
 
 
 def execute(
-    loaded: LoadedScenario,
-    settings: RunSettings,
+    run: Run,
     store: ResultsStore,
     progress: Callable[[int, int], None] | None = None,
     skip_done: bool = True,
@@ -230,34 +205,33 @@ def execute(
     from wbcbench.bench.results import printed_path
 
     version = code_version(store)
-    rid = run_id(loaded, settings, version)
+    rid = run_id(run, version)
     if skip_done and rid in store.done_run_ids():
         return None
     if can_guard():
-        seconds = wall_limit_s or tracking_deadline(loaded.spec.duration)
+        seconds = wall_limit_s or tracking_deadline(run.scenario.spec.duration)
         printed = printed_path(store.folder, rid)
-        args = (loaded, settings, rid, version, check_factor)
+        args = (run, rid, version, check_factor)
         outcome = call_with_deadline(
             _tracking_without_result, args, seconds, printed, progress=progress
         )
         if outcome.ok:
             record: RunRecord = outcome.value
         else:
-            record = ended_record(loaded, settings, rid, version, "failed", outcome.message)
+            record = ended_record(run, rid, version, "failed", outcome.message)
     else:
-        record = compute_tracking(loaded, settings, rid, version, progress, check_factor)
-    store_record(store, loaded, record)
+        record = compute_tracking(run, rid, version, progress, check_factor)
+    store_record(store, run, record)
     return record
 
 
 def _tracking_without_result(
-    loaded: LoadedScenario,
-    settings: RunSettings,
+    run: Run,
     rid: str,
     version: str,
     check_factor: float | None,
     progress: Callable[[int, int], None] | None = None,
 ) -> RunRecord:
-    record = compute_tracking(loaded, settings, rid, version, progress, check_factor)
+    record = compute_tracking(run, rid, version, progress, check_factor)
     record.result = None
     return record

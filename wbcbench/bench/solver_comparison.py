@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from wbcbench.qp import Problem, Solution, check_solution, make_solver, validated
+from wbcbench.qp.registry import DEFAULT_SOLVER
 from wbcbench.qp.settings import TIER_EPS
 
 SOLVES_CSV = "qp_solves.csv"
@@ -112,8 +113,9 @@ class SolveTable:
 
 
 def reference_solution(problem: Problem, solver: str) -> tuple[np.ndarray | None, bool]:
-    """A high-accuracy solution: ``solver`` at tier ``high``, else ProxQP; (x, valid)."""
-    for name in dict.fromkeys([solver, "proxqp", "clarabel"]):
+    """A high-accuracy solution: ``solver`` at tier ``high``, else the default backend's, else
+    Clarabel's; (x, valid)."""
+    for name in dict.fromkeys([solver, DEFAULT_SOLVER, "clarabel"]):
         try:
             sol = make_solver(name, tier="high").solve(problem)
         except Exception:  # a missing backend: try the next one
@@ -274,11 +276,11 @@ def run_solver_comparison(plan: Any, folder: str | Path, show_progress: bool = T
     from wbcbench.bench.timing import dump_problems
 
     spec = plan.comparison
-    for loaded, controller, options in plan.comparison_targets:
+    for run, options in plan.comparison_targets:
         try:
-            dump_problems(folder, loaded, controller, options, spec.dump_after, spec.dump_ticks)
+            dump_problems(folder, run, options, spec.dump_after, spec.dump_ticks)
         except Exception as exc:  # a controller that cannot replay: say so, go on
-            print(f"solver comparison: no QPs from {loaded.name} · {controller}: {exc}")
+            print(f"solver comparison: no QPs from {run.name} · {run.controller}: {exc}")
     version = code_version(ResultsStore(folder))
     return compare_on_problems(
         folder,

@@ -32,7 +32,6 @@ jobs; :func:`run_sweep` runs them. Every error names the sweep file and the key 
 from __future__ import annotations
 
 import fnmatch
-import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,12 +42,12 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from wbcbench.bench.checks import CHECK_FACTOR
 from wbcbench.errors import ScenarioError, UnknownNameError, WbcBenchError
-from wbcbench.sim.closed_loop import RunSettings
+from wbcbench.qp.registry import default_solver
+from wbcbench.runs import Planner, Run, RunSettings, solver_runs
 
 Tier = Literal["default", "low", "mid", "high"]
 Mode = Literal["cold", "warm", "hot"]
 Impl = Literal["default", "native", "python"]
-DEFAULT_SOLVER = "proxqp"
 SWEEP_DIR = Path(__file__).resolve().parents[2] / "sweeps"
 
 
@@ -218,18 +217,13 @@ class Job:
     """One run of the plan (a row of the results table)."""
 
     kind: str  # tracking | timing
-    scenario_path: str
-    overrides: tuple[str, ...]
-    settings: RunSettings
+    run: Run
     options: dict[str, Any] = field(default_factory=dict)
     skip_reason: str = ""
-    loaded: Any = None  # the LoadedScenario (kept in the planning process)
 
     @property
     def label(self) -> str:
-        s = self.settings
-        cfg = f" {json.dumps(s.controller_config, sort_keys=True)}" if s.controller_config else ""
-        return f"{self.kind} {self.loaded.name} · {s.controller}{cfg} · {s.solver} · {s.mode}"
+        return f"{self.kind} {self.run.label}"
 
     @property
     def extra(self) -> dict[str, Any]:
@@ -248,8 +242,8 @@ class SweepPlan:
     jobs: list[Job]
     not_applicable: list[str]
     comparison: SolverComparisonSpec | None
-    #: (loaded scenario, controller, recording options) whose QPs the comparison dumps
-    comparison_targets: list[tuple[Any, str, dict[str, Any]]]
+    #: (run, recording options) whose QPs the comparison dumps
+    comparison_targets: list[tuple[Run, dict[str, Any]]]
     comparison_solvers: list[str]
     timing_by_scenario: dict[str, dict[str, Any]]  # scenario key → recording options
 
@@ -349,11 +343,6 @@ def native_solvers() -> list[str]:
     return available_backends()
 
 
-def default_solver() -> str:
-    native = native_solvers()
-    return DEFAULT_SOLVER if DEFAULT_SOLVER in native else native[0]
-
-
 def resolve_solvers(patterns: Sequence[str], file: str, key: str) -> list[str]:
     """``default``, ``native``, ``all``, globs over the installed names, or names."""
     from wbcbench.qp import available_solvers, solver_class
@@ -430,50 +419,24 @@ def offered_choices(
 # -- planning
 
 
-class _Scenarios:
-    """Loads each (scenario, overrides) once and checks it against its robot once."""
-
-    def __init__(self) -> None:
-        self._cache: dict[tuple[str, tuple[str, ...]], Any] = {}
-        self._robots: dict[tuple[str, str], Any] = {}
-
-    def get(self, name: str, overrides: tuple[str, ...], file: str, key: str) -> Any:
-        from wbcbench.scenarios.load import (
-            check_against_robot,
-            load_scenario,
-            load_scenario_robot,
-        )
-
-        k = (name, overrides)
-        if k not in self._cache:
-            try:
-                loaded = load_scenario(name, list(overrides))
-                rkey = (loaded.spec.robot, str(loaded.path.parent))
-                if rkey not in self._robots:
-                    self._robots[rkey] = load_scenario_robot(loaded)
-                check_against_robot(loaded, self._robots[rkey])
-            except WbcBenchError as exc:
-                raise ScenarioError(file, key, f"scenario {name!r}: {exc}") from None
-            self._cache[k] = loaded
-        return self._cache[k]
+def _scenario(planner: Planner, name: str, overrides: tuple[str, ...], file: str, key: str) -> Any:
+    """The scenario with its overrides, checked against its robot (once per plan)."""
+    try:
+        return planner.scenario(name, overrides)[0]
+    except WbcBenchError as exc:
+        raise ScenarioError(file, key, f"scenario {name!r}: {exc}") from None
 
 
 def _config_variants(
     matrix: MatrixSpec | SolverComparisonSpec, controller: str, loaded: Any, file: str, key: str
 ) -> list[dict[str, Any]]:
-    """The config overrides of a controller, each validated against its Config model."""
-    from wbcbench.controllers.registry import controller_class
-    from wbcbench.scenarios.load import controller_settings, validation_error
+    """The config overrides of a controller, each validated by the controller registry."""
+    from wbcbench.controllers.registry import controller_class, validated_config
 
     variants = getattr(matrix, "configs", {}).get(controller, [{}]) or [{}]
     cls = controller_class(controller)
     for i, variant in enumerate(variants):
-        try:
-            cls.Config.model_validate({**controller_settings(loaded, controller), **variant})
-        except ValidationError as exc:
-            raise validation_error(
-                file, exc, cls.Config, f"{key}.configs.{controller}[{i}]"
-            ) from None
+        validated_config(cls, loaded, variant, file, f"{key}.configs.{controller}[{i}]")
     return variants
 
 
@@ -588,7 +551,7 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
     from wbcbench.controllers.registry import controller_class
     from wbcbench.qp import solver_class
 
-    scenarios = _Scenarios()
+    planner = Planner()
     jobs: list[Job] = []
     not_applicable: list[str] = []
     timing_opts: dict[str, dict[str, Any]] = {}
@@ -613,8 +576,9 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
         ]
         runs_of: dict[str, list[tuple[str, str, str]]] = {}
         for controller, explicit in controllers:
-            own = controller_class(controller).own_solver  # it runs once, with its own solver
-            runs_of[controller] = [(own, "default", matrix.modes[0])] if own else backend_runs
+            cls = controller_class(controller)
+            runs_of[controller] = solver_runs(cls, backend_runs, matrix.modes[0])
+            own = cls.own_solver
             if own and explicit and matrix.solvers != ["default"]:
                 not_applicable.append(
                     f"{key} · {controller}: solves with its own {own}; solvers do not apply"
@@ -628,12 +592,12 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
         for name in names:
             for robot, variant, where in combos:
                 overrides = (*robot, *matrix.set, *variant)
-                loaded = scenarios.get(name, overrides, file, where)
+                loaded = _scenario(planner, name, overrides, file, where)
                 if isinstance(matrix, TrackingSpec) and matrix.max_duration is not None:
                     extra = _shorten(loaded.spec, matrix.max_duration)
                     if extra:
                         overrides = (*overrides, *extra)
-                        loaded = scenarios.get(name, overrides, file, f"{key}.max_duration")
+                        loaded = _scenario(planner, name, overrides, file, f"{key}.max_duration")
                 options: dict[str, Any] = {}
                 if isinstance(matrix, TimingSpec):
                     options = _timing_options(matrix, loaded, file, key)
@@ -658,30 +622,26 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                         for impl in _impl_configs(matrix.impls, controller)
                     ]:
                         for solver, tier, mode in runs_of[controller]:
-                            settings = RunSettings(
-                                controller=controller,
-                                solver=solver,
+                            run = planner.run(
+                                loaded,
+                                controller,
+                                solver,
                                 tier=tier,
                                 mode=mode,
-                                controller_config=dict(config),
+                                config=dict(config),
+                                timing=kind == "timing",
                             )
                             skip = next(
-                                (r.reason for r in matrix.skip if r.matches(loaded.name, settings)),
+                                (
+                                    r.reason
+                                    for r in matrix.skip
+                                    if r.matches(loaded.name, run.settings)
+                                ),
                                 "",
                             )
-                            jobs.append(
-                                Job(
-                                    kind,
-                                    str(loaded.path),
-                                    overrides,
-                                    settings,
-                                    dict(options),
-                                    skip,
-                                    loaded,
-                                )
-                            )
+                            jobs.append(Job(kind, run, dict(options), skip))
     comparison = spec.solver_comparison
-    targets: list[tuple[Any, str, dict[str, Any]]] = []
+    targets: list[tuple[Run, dict[str, Any]]] = []
     comp_solvers: list[str] = []
     if comparison is not None:
         key = "solver_comparison"
@@ -699,13 +659,14 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
         names = resolve_scenarios(comparison.scenarios, file, f"{key}.scenarios")
         controllers = resolve_controllers(comparison.controllers, file, f"{key}.controllers")
         for name in names:
-            loaded = scenarios.get(name, (), file, f"{key}.scenarios")
+            loaded = _scenario(planner, name, (), file, f"{key}.scenarios")
             options = timing_opts.get(f"{loaded.name}@{loaded.hash}") or _timing_options(
                 TimingSpec(), loaded, file, key
             )
             for controller, _ in controllers:
                 if not controller_class(controller).applies_to(loaded.spec):
-                    targets.append((loaded, controller, options))
+                    run = planner.run(loaded, controller, mode="hot", timing=True)
+                    targets.append((run, options))
     return SweepPlan(
         file, spec, jobs, not_applicable, comparison, targets, comp_solvers, timing_opts
     )
@@ -795,7 +756,7 @@ def run_sweep(
 
     store = ResultsStore(out)
     version = code_version(store)
-    planned_ids = {run_id(job.loaded, job.settings, version, extra=job.extra) for job in plan.jobs}
+    planned_ids = {run_id(job.run, version, extra=job.extra) for job in plan.jobs}
     if rerun != "none":
         statuses = store.run_statuses()
         store.forget(
@@ -810,7 +771,7 @@ def run_sweep(
     pending: list[tuple[Job, str]] = []
     planned: set[str] = set()
     for job in plan.jobs:
-        rid = run_id(job.loaded, job.settings, version, extra=job.extra)
+        rid = run_id(job.run, version, extra=job.extra)
         if rid in done:
             report.resumed += 1
         elif rid not in planned:  # two matrices may name the same combination: run it once
@@ -822,11 +783,11 @@ def run_sweep(
         from wbcbench.bench.runner import store_record
 
         try:
-            store_record(store, job.loaded, record)
+            store_record(store, job.run, record)
         except Exception as exc:  # e.g. an unwritable log: keep the row, say what was lost
             record.log = None
             record.row["message"] = f"{record.row.get('message') or ''} (log not saved: {exc})"
-            store_record(store, job.loaded, record)
+            store_record(store, job.run, record)
         report.computed += 1
         budget[0] -= 1
         row = record.row

@@ -30,12 +30,12 @@ import numpy as np
 from wbcbench.bench.checks import SolverCapture, check_reported
 from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE, machine_conditions
 from wbcbench.bench.runner import RunRecord, base_row, ended_record
-from wbcbench.bench.sweep import HlsScalingSpec, Job, default_solver
+from wbcbench.bench.sweep import HlsScalingSpec, Job
 from wbcbench.errors import WbcBenchError
 from wbcbench.metrics.timing import timing_stats
 from wbcbench.qp import Problem, Solution
-from wbcbench.scenarios.load import LoadedScenario, load_scenario
-from wbcbench.sim.closed_loop import RunSettings
+from wbcbench.runs import Run, plan_run
+from wbcbench.scenarios.load import LoadedScenario
 from wbcbench.sim.replay import Recording, record_states, replay
 
 HLS_SCENARIO = "rqr_fig1_stack"
@@ -65,8 +65,8 @@ def cached_recording(
     if path.exists():
         rec = Recording.load(path)
     else:
-        shortened = load_scenario(loaded.path, [*loaded.overrides, f"duration={end:.6g}"])
-        rec = record_states(shortened, RunSettings(controller=recorder, solver=default_solver()))
+        overrides = [*loaded.overrides, f"duration={end:.6g}"]
+        rec = record_states(plan_run(loaded.path, recorder, overrides=overrides))
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp.npz")
         rec.save(tmp)
@@ -113,9 +113,7 @@ def timing_metrics(stages: dict[str, np.ndarray], warmup: int) -> list[dict[str,
 
 
 def skipped_record(job: Job, rid: str, version: str, reason: str) -> RunRecord:
-    return ended_record(
-        job.loaded, job.settings, rid, version, "skipped", reason, job.kind, job.extra
-    )
+    return ended_record(job.run, rid, version, "skipped", reason, job.kind, job.extra)
 
 
 def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
@@ -126,7 +124,7 @@ def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> 
 
     if not can_guard():
         return run_timing_job(job, rid, version, folder)
-    spec = job.loaded.spec
+    spec = job.run.scenario.spec
     window = spec.metrics.window
     seconds = job.options.get("wall_limit_s") or timing_deadline(
         window[1] if window is not None else spec.duration, int(job.options["ticks"])
@@ -136,17 +134,15 @@ def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> 
     if outcome.ok:
         record: RunRecord = outcome.value
         return record
-    return ended_record(
-        job.loaded, job.settings, rid, version, "failed", outcome.message, "timing", job.extra
-    )
+    return ended_record(job.run, rid, version, "failed", outcome.message, "timing", job.extra)
 
 
 def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
     """Replay one controller × solver × mode on the scenario's recorded window; never raises."""
-    loaded: LoadedScenario = job.loaded
+    loaded = job.run.scenario
     opts = job.options
-    row = base_row(loaded, job.settings, rid, version, "timing", job.extra)
-    settings = job.settings
+    row = base_row(job.run, rid, version, "timing", job.extra)
+    settings = job.run.settings
     base = dict(scenario=loaded.name, controller=settings.controller, solver=settings.solver)
     metrics: list[dict[str, Any]] = []
     log = None
@@ -181,9 +177,8 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
             )
         before = machine_conditions()
         timings = replay(
-            loaded,
+            job.run,
             rec,
-            job.settings,
             on_step=after_step,
             wrap_solver=lambda handle: SolverCapture(handle, pairs),
         )
@@ -236,17 +231,18 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
 
 def dump_problems(
     folder: str | Path,
-    loaded: LoadedScenario,
-    controller: str,
+    run: Run,
     options: dict[str, Any],
     after: int,
     ticks: int,
 ) -> list[Path]:
-    """Save the QPs of ``ticks`` consecutive replayed steps (after ``after`` ticks) as .npz.
+    """Save the QPs of ``ticks`` consecutive replayed steps of ``run`` (after ``after`` ticks)
+    as .npz.
 
     Files go to ``problems/<scenario>-<hash>/<controller>/t<tick>-<k>.npz``; an existing folder
     is reused as is. Returns the files in tick order.
     """
+    loaded, controller = run.scenario, run.controller
     target = Path(folder) / "problems" / f"{loaded.name}-{loaded.hash}" / controller
     if (target / "done").exists():
         return sorted(target.glob("t*.npz"))
@@ -277,10 +273,7 @@ def dump_problems(
             saved.append(path)
         return ""
 
-    settings = RunSettings(controller=controller, solver=default_solver(), mode="hot")
-    replay(
-        loaded, rec, settings, on_step=keep, wrap_solver=lambda handle: SolverCapture(handle, pairs)
-    )
+    replay(run, rec, on_step=keep, wrap_solver=lambda handle: SolverCapture(handle, pairs))
     (target / "done").write_text(json.dumps({"files": len(saved)}) + "\n")
     return saved
 

@@ -21,7 +21,9 @@ from pydantic import BaseModel, ConfigDict, Field
 from wbcbench import _native
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
-from wbcbench.qp import Problem, Solution, make_solver
+from wbcbench.qp import Problem, make_solver
+from wbcbench.qp.registry import DEFAULT_SOLVER
+from wbcbench.qp.solution import SolveTimes
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.schema import Scenario
 from wbcbench.tasks.contacts import PlaneContact
@@ -107,7 +109,7 @@ class ControllerContext:
     tasks: list[Task]
     contacts: list[PlaneContact]
     tau_max: np.ndarray
-    solver: str = "proxqp"
+    solver: str = DEFAULT_SOLVER
     tier: str = "default"
     mode: str = "cold"
     dt: float = 1e-3
@@ -154,47 +156,6 @@ class ControlOutput:
     iterations: float = float("nan")
     diagnostics: dict[str, float] = field(default_factory=dict)
     problems: list[Problem] = field(default_factory=list)
-
-
-class SolveTimes:
-    """The solve stages of one step, summed over its QPs: ``solve`` (the calls into the QP
-    layer), ``solve_setup``, ``solve_native``, ``solve_internal``, ``solve.<level>``, and the
-    iterations."""
-
-    def __init__(self) -> None:
-        self.solve = 0.0
-        self.solve_setup = 0.0
-        self.solve_native = 0.0
-        self.solve_internal = 0.0
-        self.internal_known = True
-        self.levels: dict[str, float] = {}
-        self.iterations = 0.0
-
-    def add_solution(self, sol: Solution, level: str | None = None) -> None:
-        # the whole call into the QP layer: validation, set-up / update of the solver's object,
-        # the native solve and reading the result back (``solve_native`` is the native call)
-        call = sol.call_time or (sol.setup_time + sol.wall_time)
-        self.solve += call
-        self.solve_setup += sol.setup_time
-        self.solve_native += sol.wall_time
-        if sol.internal_time is None:
-            self.internal_known = False
-        else:
-            self.solve_internal += sol.internal_time
-        if sol.iterations is not None:
-            self.iterations += sol.iterations
-        if level is not None:
-            key = f"solve.{level}"
-            self.levels[key] = self.levels.get(key, 0.0) + call
-
-    def solve_stages(self) -> dict[str, float]:
-        return {
-            "solve": self.solve,
-            "solve_setup": self.solve_setup,
-            "solve_native": self.solve_native,
-            "solve_internal": self.solve_internal if self.internal_known else float("nan"),
-            **self.levels,
-        }
 
 
 class StageTimer(SolveTimes):

@@ -11,14 +11,14 @@ distribution, x_l = (w_l, F_r):
 
 with the slacks of the levels above fixed (Γ_{<l}* is their torque), E_l = J*_{l|<l}ᵀ Λ_{l|<l} for
 an acceleration-level task and J*_{l|<l}ᵀ for a force-level one (eq. 30–31; the reference is then
-an operational force, see :mod:`wbcbench.dynamics.osf`). The exact level coupling B_l Ĵ_l Γ_{<l}
+an operational force, see :mod:`wbcbench.tasks.osf`). The exact level coupling B_l Ĵ_l Γ_{<l}
 (``coupling: exact``) makes every level realise its reference when feasible; ``literal`` drops it
 as the paper's eq. (25) does. A final QP optimises the contact wrench over F_r only,
 min ½ ‖W_c f‖² subject to (27)–(29) (§III-B1, W_c zero on the normal forces by default, as in the
 paper's experiment); with a single plane contact there is no F_r and no final QP.
 
 Timings: ``solve.T<i>`` per task level, ``solve.wrench`` for the final QP, ``params`` for the
-operational-space parameters (see :mod:`wbcbench.sim.params`).
+operational-space parameters (see :mod:`wbcbench.controllers.params`).
 """
 
 from __future__ import annotations

@@ -6,6 +6,10 @@ subclass, add one line to ``CONTROLLERS`` below; the registry sweep test picks i
 
 from __future__ import annotations
 
+from typing import Any
+
+from pydantic import ValidationError
+
 from wbcbench.controllers.base import Controller, ControllerConfig, ControllerContext
 from wbcbench.controllers.hqp import Hqp
 from wbcbench.controllers.kin_hqp import KinHqp
@@ -14,7 +18,9 @@ from wbcbench.controllers.osf_hqp import OsfHqp
 from wbcbench.controllers.qp_wbc import QpWbc
 from wbcbench.controllers.rc_lqp import RcLqp
 from wbcbench.controllers.to_osf import ToOsf
-from wbcbench.errors import UnknownNameError
+from wbcbench.errors import ScenarioError, UnknownNameError
+from wbcbench.robots.loader import Robot
+from wbcbench.scenarios.load import LoadedScenario, validation_error
 
 CONTROLLERS: dict[str, type[Controller]] = {
     QpWbc.name: QpWbc,
@@ -49,3 +55,44 @@ def make_controller(
     if config is None or isinstance(config, ControllerConfig):
         return cls(ctx, config)
     return cls(ctx, cls.Config.model_validate(config))
+
+
+def validated_config(
+    cls: type[Controller],
+    loaded: LoadedScenario,
+    variant: dict[str, Any] | None = None,
+    file: str | None = None,
+    key: str | None = None,
+) -> ControllerConfig:
+    """The controller's settings for a run: the scenario's ``controllers.<name>``, then
+    ``variant`` on top, validated by the controller's Config.
+
+    Raises:
+        ScenarioError: at ``file`` and ``key`` (default: the scenario file and
+            ``controllers.<name>``), naming the key and the valid choices.
+    """
+    merged = {**loaded.spec.controllers.get(cls.name, {}), **(variant or {})}
+    try:
+        return cls.Config.model_validate(merged)
+    except ValidationError as exc:
+        raise validation_error(
+            file or str(loaded.path), exc, cls.Config, key or f"controllers.{cls.name}"
+        ) from None
+
+
+def check_scenario_settings(loaded: LoadedScenario, robot: Robot) -> None:
+    """Every ``controllers.<name>`` section of a scenario names a registered controller, its
+    settings validate, and the names in them (tasks, bodies) exist in the scenario and robot.
+
+    Raises:
+        ScenarioError: at ``controllers.<name>[.<key>]`` of the scenario file.
+    """
+    file = str(loaded.path)
+    for name in loaded.spec.controllers:
+        try:
+            cls = controller_class(name)
+        except UnknownNameError as exc:
+            raise ScenarioError(file, f"controllers.{name}", str(exc)) from None
+        config = validated_config(cls, loaded)
+        for key, message in config.robot_errors(loaded.spec, robot):
+            raise ScenarioError(file, f"controllers.{name}.{key}", message)

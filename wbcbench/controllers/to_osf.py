@@ -19,7 +19,7 @@ least slipping"); ``wrench_cost: internal`` penalises only F_opt, the literal eq
 weights default to H = 1e7 for every task and H_w = 1 (TO-OSF §IV, "H_{m+1} = I").
 
 f is the reaction on the robot (the papers' F_c = −f). The operational-space parameters come from
-:mod:`wbcbench.dynamics.osf` through the parameter server (``params: inline | periodic:N |
+:mod:`wbcbench.tasks.osf` through the parameter server (``params: inline | periodic:N |
 async``). This module also holds what both OSF controllers share (:class:`OsfControllerBase`).
 """
 
@@ -39,14 +39,14 @@ from wbcbench.controllers.base import (
     NativeConfig,
     StageTimer,
 )
+from wbcbench.controllers.params import ParameterServer, ParamsRead, parse_params_mode
 from wbcbench.controllers.qp_wbc import task_weight, task_weight_of
-from wbcbench.dynamics.osf import OsfModel, OsfParams, group_levels, level_kinds
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.metrics.consistency import dc_error, hierarchy_leak
 from wbcbench.qp import Problem
-from wbcbench.sim.params import ParameterServer, ParamsRead, parse_params_mode
 from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.osf import OsfModel, OsfParams, group_levels, level_kinds
 from wbcbench.tasks.tasks import TaskTerm
 
 

@@ -14,9 +14,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from wbcbench.dynamics.osf import OsfParams
 from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
+from wbcbench.tasks.osf import OsfParams
 
 
 def hierarchy_leak(

@@ -17,6 +17,7 @@ from wbcbench.qp.registry import (
     all_solvers,
     available_backends,
     available_solvers,
+    default_solver,
     make_solver,
     solver_class,
 )
@@ -36,6 +37,7 @@ __all__ = [
     "available_backends",
     "available_solvers",
     "check_solution",
+    "default_solver",
     "make_solver",
     "solve",
     "solver_class",
@@ -44,11 +46,12 @@ __all__ = [
 
 
 def solve(
-    problem: Problem, solver: str = "proxqp", tier: str = "default", mode: str = "cold"
+    problem: Problem, solver: str = "default", tier: str = "default", mode: str = "cold"
 ) -> Solution:
     """Solve ``problem`` once with a fresh handle (see :func:`make_solver` for the arguments).
 
     A one-shot handle has no previous solution, so ``warm`` and ``hot`` behave as ``cold``
     here; keep a handle from :func:`make_solver` to benefit from them.
     """
-    return make_solver(solver, tier=tier, mode=mode).solve(problem)
+    name = default_solver() if solver == "default" else solver
+    return make_solver(name, tier=tier, mode=mode).solve(problem)

@@ -46,7 +46,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import numpy as np
 import scipy.linalg
@@ -56,10 +56,7 @@ from wbcbench.dynamics.dense import upper
 from wbcbench.errors import UnknownNameError
 from wbcbench.qp.base import QPSolver
 from wbcbench.qp.problem import Problem
-from wbcbench.qp.solution import Solution, SolutionStatus
-
-if TYPE_CHECKING:
-    from wbcbench.controllers.base import StageTimer
+from wbcbench.qp.solution import Solution, SolutionStatus, SolveTimes
 
 Array = np.ndarray
 Strategy = Literal["cascade", "nullspace", "weighted", "rqr"]
@@ -358,7 +355,7 @@ def solve_hierarchy(
     finals: list[Objective],
     strategy: str,
     solvers: list[QPSolver] | None = None,
-    timer: StageTimer | None = None,
+    timer: SolveTimes | None = None,
     prox: float = 0.0,
     merge_finals: bool = False,
     slack_free_first: bool = False,
@@ -412,13 +409,13 @@ def solve_hierarchy(
     )
 
 
-def _record(timer: StageTimer | None, sol: Solution, name: str) -> None:
+def _record(timer: SolveTimes | None, sol: Solution, name: str) -> None:
     if timer is not None:
         timer.add_solution(sol, level=name)
 
 
 def _solve_weighted(
-    hard: Constraints, soft: list[PriorityLevel], solver: QPSolver, timer: StageTimer | None
+    hard: Constraints, soft: list[PriorityLevel], solver: QPSolver, timer: SolveTimes | None
 ) -> HierarchyResult:
     n = hard.n
     r_total = sum(lv.C.shape[0] for lv in soft)  # type: ignore[union-attr]
@@ -517,7 +514,7 @@ def _solve_sequential(
     soft: list[PriorityLevel],
     n_finals: int,
     solvers: list[QPSolver],
-    timer: StageTimer | None,
+    timer: SolveTimes | None,
     nullspace: bool,
     prox: float,
     merged: list[PriorityLevel] = (),  # type: ignore[assignment]
@@ -664,7 +661,7 @@ def _feasible_pair(
     solver: QPSolver,
     relax: float,
     merged: list[PriorityLevel],
-    timer: StageTimer | None,
+    timer: SolveTimes | None,
 ) -> tuple[Array, Array, Solution | None] | None:
     """Level ``lv`` held hard inside ``nxt``'s QP (see ``hard_if_feasible``).
 
@@ -900,7 +897,7 @@ def _nullspace_level(
 
 
 def _solve_rqr(
-    hard: Constraints, soft: list[PriorityLevel], timer: StageTimer | None
+    hard: Constraints, soft: list[PriorityLevel], timer: SolveTimes | None
 ) -> HierarchyResult:
     from wbcbench.qp.hls import Level, solve_hls
 

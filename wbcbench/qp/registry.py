@@ -152,6 +152,16 @@ def available_backends() -> list[str]:
     return [name for name in sorted(BACKENDS) if _load(name) is not None]
 
 
+#: the backend a run solves with when none is named: the sweeps', the API's, the recordings'
+DEFAULT_SOLVER = "proxqp"
+
+
+def default_solver() -> str:
+    """:data:`DEFAULT_SOLVER` where it is installed, else the first installed backend."""
+    installed = available_backends()
+    return DEFAULT_SOLVER if DEFAULT_SOLVER in installed else installed[0]
+
+
 def all_solvers() -> list[SolverInfo]:
     """Every registry name with availability, library version and native capabilities.
 

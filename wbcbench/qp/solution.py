@@ -82,3 +82,44 @@ class Solution:
     def success(self) -> bool:
         """True iff the solver reported ``solved``."""
         return self.status is SolutionStatus.SOLVED
+
+
+class SolveTimes:
+    """The solve stages of one step, summed over its QPs: ``solve`` (the calls into the QP
+    layer), ``solve_setup``, ``solve_native``, ``solve_internal``, ``solve.<level>``, and the
+    iterations."""
+
+    def __init__(self) -> None:
+        self.solve = 0.0
+        self.solve_setup = 0.0
+        self.solve_native = 0.0
+        self.solve_internal = 0.0
+        self.internal_known = True
+        self.levels: dict[str, float] = {}
+        self.iterations = 0.0
+
+    def add_solution(self, sol: Solution, level: str | None = None) -> None:
+        # the whole call into the QP layer: validation, set-up / update of the solver's object,
+        # the native solve and reading the result back (``solve_native`` is the native call)
+        call = sol.call_time or (sol.setup_time + sol.wall_time)
+        self.solve += call
+        self.solve_setup += sol.setup_time
+        self.solve_native += sol.wall_time
+        if sol.internal_time is None:
+            self.internal_known = False
+        else:
+            self.solve_internal += sol.internal_time
+        if sol.iterations is not None:
+            self.iterations += sol.iterations
+        if level is not None:
+            key = f"solve.{level}"
+            self.levels[key] = self.levels.get(key, 0.0) + call
+
+    def solve_stages(self) -> dict[str, float]:
+        return {
+            "solve": self.solve,
+            "solve_setup": self.solve_setup,
+            "solve_native": self.solve_native,
+            "solve_internal": self.solve_internal if self.internal_known else float("nan"),
+            **self.levels,
+        }

@@ -176,7 +176,7 @@ def size_figures(res: Results, out: Path) -> list[Path]:
     t = _timing_table(res)
     if t.empty:
         return []
-    from wbcbench.bench.sweep import default_solver
+    from wbcbench.qp.registry import default_solver
 
     t = (
         t[(t["solver"] == default_solver()) & (t["mode"] == "hot")]

@@ -444,9 +444,9 @@ def load_scenario_robot(loaded: LoadedScenario) -> Any:
 
 
 def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
-    """Frames, joints, keyframe and controller settings named by the scenario must exist."""
-    from wbcbench.controllers.registry import controller_class
-
+    """Frames, joints, keyframe, bodies and torque-limit patterns named by the scenario must
+    exist in the robot (its controllers' settings are the controller registry's to check:
+    :func:`wbcbench.controllers.registry.check_scenario_settings`)."""
     spec, file = loaded.spec, str(loaded.path)
 
     def frame(key: str, name: str) -> None:
@@ -543,17 +543,6 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
                 f"limits.torque.{pattern}",
                 str(UnknownNameError("joint", pattern, robot.joint_names, hint="or a pattern")),
             )
-    for name, settings in spec.controllers.items():
-        try:
-            cls = controller_class(name)
-        except UnknownNameError as exc:
-            raise ScenarioError(file, f"controllers.{name}", str(exc)) from None
-        try:
-            config = cls.Config.model_validate(settings)
-        except ValidationError as exc:
-            raise validation_error(file, exc, cls.Config, f"controllers.{name}") from None
-        for key, message in config.robot_errors(spec, robot):
-            raise ScenarioError(file, f"controllers.{name}.{key}", message)
 
 
 def controller_settings(loaded: LoadedScenario, name: str) -> dict[str, Any]:

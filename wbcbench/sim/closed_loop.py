@@ -24,35 +24,17 @@ import mujoco
 import numpy as np
 
 from wbcbench.controllers.base import ControlOutput
-from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.robots.convert import mj_to_pin, torque_to_ctrl
 from wbcbench.robots.loader import Robot, simulation_model, welded_bodies
+from wbcbench.runs import Run
 from wbcbench.scenarios.initial import initial_state
-from wbcbench.scenarios.load import (
-    LoadedScenario,
-    check_against_robot,
-    load_scenario_robot,
-    sole_boxes,
-    torque_limits,
-)
-from wbcbench.sim.setup import WrappingContext, build_controller
+from wbcbench.scenarios.load import LoadedScenario, sole_boxes, torque_limits
 
 STAGES = ("dynamics", "build", "solve", "solve_internal", "total")
 LOST_CONTACT_TICKS = 50
 #: a commanded torque beyond (1 + TORQUE_TOL) × its limit fails the tick (solver accuracy)
 TORQUE_TOL = 1e-3
-
-
-@dataclass
-class RunSettings:
-    """What varies between runs of one scenario."""
-
-    controller: str = "qp_wbc"
-    solver: str = "proxqp"
-    tier: str = "default"
-    mode: str = "cold"
-    controller_config: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -207,15 +189,6 @@ class Rejections:
         return status, f"{message}; {self.first} {counted}"
 
 
-def build_checked_controller(
-    loaded: LoadedScenario, settings: RunSettings, robot: Robot, wrap_solver: Any
-) -> Any:
-    """The run's controller, its solver handles passed through ``wrap_solver`` when given."""
-    if wrap_solver is None:
-        return build_controller(loaded, settings, robot)
-    return build_controller(loaded, settings, robot, context_cls=WrappingContext, wrap=wrap_solver)
-
-
 def prepare_model(robot: Robot, loaded: LoadedScenario) -> mujoco.MjModel:
     """A copy of the robot's MuJoCo model with the scenario's simulation settings applied."""
     sim = loaded.spec.sim
@@ -260,39 +233,30 @@ def friction_torque(robot: Robot, model: mujoco.MjModel, qd: np.ndarray) -> np.n
 
 
 def run_closed_loop(
-    loaded: LoadedScenario,
-    settings: RunSettings,
-    robot: Robot | None = None,
+    run: Run,
     progress: Callable[[int, int], None] | None = None,
     on_step: Callable[[RobotState, ControlOutput], None] | None = None,
     wrap_solver: Callable[[Any], Any] | None = None,
     check: Callable[[ControlOutput], str] | None = None,
 ) -> RunResult:
-    """Simulate one scenario with one controller and solver; never raises for a failed QP.
+    """Simulate one run (:func:`wbcbench.runs.plan_run`); never raises for a failed QP.
 
     ``wrap_solver`` wraps every solver handle the controller makes; ``check(out)`` runs after
     each successful step (outside the controller's timed stages) and may return a message that
     marks the tick failed like a failed QP: the previous torque is held, and a run with such
     ticks ends ``failed`` with that message (see :meth:`Rejections.outcome`).
 
-    Velocity-level controllers and kinematic scenarios run without physics
-    (:func:`wbcbench.sim.kinematic.run_kinematic`).
+    A run whose runner is ``kinematic`` (velocity-level controllers, kinematic scenarios) runs
+    without physics: :func:`wbcbench.sim.kinematic.run_kinematic`.
     """
-    if controller_class(settings.controller).kind == "velocity" or loaded.spec.kind == "kinematic":
+    if run.runner == "kinematic":
         from wbcbench.sim.kinematic import run_kinematic  # it imports this module
 
         return run_kinematic(
-            loaded,
-            settings,
-            robot=robot,
-            progress=progress,
-            on_step=on_step,
-            wrap_solver=wrap_solver,
-            check=check,
+            run, progress=progress, on_step=on_step, wrap_solver=wrap_solver, check=check
         )
+    loaded, robot = run.scenario, run.robot
     spec = loaded.spec
-    robot = robot if robot is not None else load_scenario_robot(loaded)
-    check_against_robot(loaded, robot)
     model = prepare_model(robot, loaded)
     data = mujoco.MjData(model)
     q0, v0 = initial_state(loaded, robot)
@@ -301,7 +265,7 @@ def run_closed_loop(
     data.qvel[:] = qvel
     mujoco.mj_forward(model, data)
 
-    controller = build_checked_controller(loaded, settings, robot, wrap_solver)
+    controller = run.make_controller(wrap_solver)
     contacts = controller.ctx.contacts
     tau_max = controller.ctx.tau_max
     frames = [c.frame for c in contacts]

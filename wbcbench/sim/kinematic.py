@@ -28,59 +28,33 @@ import numpy as np
 import pinocchio as pin
 
 from wbcbench.controllers.base import ControlOutput
-from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
-from wbcbench.errors import WbcBenchError
-from wbcbench.robots.loader import Robot
+from wbcbench.runs import Run
 from wbcbench.scenarios.initial import initial_state
-from wbcbench.scenarios.load import (
-    LoadedScenario,
-    check_against_robot,
-    load_scenario_robot,
-)
-from wbcbench.sim.closed_loop import (
-    Rejections,
-    RunLog,
-    RunResult,
-    RunSettings,
-    build_checked_controller,
-    output_row,
-)
+from wbcbench.sim.closed_loop import Rejections, RunLog, RunResult, output_row
 
 
 def run_kinematic(
-    loaded: LoadedScenario,
-    settings: RunSettings,
-    robot: Robot | None = None,
+    run: Run,
     progress: Callable[[int, int], None] | None = None,
     on_step: Callable[[RobotState, ControlOutput], None] | None = None,
     mj_data: mujoco.MjData | None = None,
     wrap_solver: Callable[[Any], Any] | None = None,
     check: Callable[[ControlOutput], str] | None = None,
 ) -> RunResult:
-    """Run one kinematic scenario with a velocity-level controller; never raises for a failed tick.
+    """Run one kinematic run (runner ``kinematic``); never raises for a failed tick.
 
     Args:
-        loaded: the scenario.
-        settings: controller and its settings (the solver fields are passed on unused by
-            controllers that solve their hierarchy themselves).
-        robot: the loaded robot (loaded from the scenario when None).
+        run: the run (:func:`wbcbench.runs.plan_run`); the solver fields are passed on unused by
+            controllers that solve their hierarchy themselves.
         progress: called with (ticks done, total) after each tick.
         on_step: called with each tick's state and output.
         mj_data: a MuJoCo data of the robot's model to set ``qpos`` in each tick (visualisation).
         wrap_solver, check: as in :func:`wbcbench.sim.closed_loop.run_closed_loop`.
-
-    Raises:
-        WbcBenchError: the controller does not apply to the scenario (``applies_to``), e.g. a
-            torque controller, or a velocity controller on a dynamic scenario.
     """
+    loaded, robot = run.scenario, run.robot
     spec = loaded.spec
-    robot = robot if robot is not None else load_scenario_robot(loaded)
-    check_against_robot(loaded, robot)
-    reason = controller_class(settings.controller).applies_to(spec)
-    if reason:
-        raise WbcBenchError(f"{loaded.path}: {reason}")
-    controller = build_checked_controller(loaded, settings, robot, wrap_solver)
+    controller = run.make_controller(wrap_solver)
     contacts = controller.ctx.contacts
 
     model = robot.pin_model

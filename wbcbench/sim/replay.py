@@ -16,10 +16,8 @@ import numpy as np
 
 from wbcbench.controllers.base import ControlOutput
 from wbcbench.dynamics.state import RobotState
-from wbcbench.robots.loader import Robot
-from wbcbench.scenarios.load import LoadedScenario, load_scenario_robot
-from wbcbench.sim.closed_loop import RunSettings, run_closed_loop
-from wbcbench.sim.setup import WrappingContext, build_controller
+from wbcbench.runs import Run
+from wbcbench.sim.closed_loop import run_closed_loop
 
 
 @dataclass
@@ -51,22 +49,20 @@ class Recording:
             return cls(str(data["scenario"]), data["t"], data["q"], data["v"])
 
 
-def record_states(
-    loaded: LoadedScenario, settings: RunSettings | None = None, robot: Robot | None = None
-) -> Recording:
-    """Run the scenario in closed loop once and keep the state of every control tick."""
+def record_states(run: Run) -> Recording:
+    """Run ``run`` in closed loop once and keep the state of every control tick."""
     ts: list[float] = []
     qs: list[np.ndarray] = []
     vs: list[np.ndarray] = []
-    dt = loaded.spec.dt
+    dt = run.scenario.spec.dt
 
     def keep(state: RobotState, out: ControlOutput) -> None:
         ts.append(len(ts) * dt)
         qs.append(state.q.copy())
         vs.append(state.v.copy())
 
-    run_closed_loop(loaded, settings or RunSettings(), robot=robot, on_step=keep)
-    return Recording(loaded.name, np.asarray(ts), np.asarray(qs), np.asarray(vs))
+    run_closed_loop(run, on_step=keep)
+    return Recording(run.name, np.asarray(ts), np.asarray(qs), np.asarray(vs))
 
 
 @dataclass
@@ -88,29 +84,21 @@ class ReplayTimings:
 
 
 def replay(
-    loaded: LoadedScenario,
+    run: Run,
     recording: Recording,
-    settings: RunSettings,
-    robot: Robot | None = None,
     keep_problems: bool = False,
     on_step: Callable[[int, ControlOutput], str] | None = None,
     wrap_solver: Callable[[Any], Any] | None = None,
 ) -> ReplayTimings:
-    """Step a fresh controller through every recorded state; collect its stage timings.
+    """Step a fresh controller of ``run`` through every recorded state; collect its stage
+    timings.
 
     ``keep_problems`` makes each output carry its QPs; ``on_step(i, out)`` runs after each
     (timed) step and may return a failure message that marks the tick failed (e.g. an
     independent validity check); ``wrap_solver`` wraps every solver handle the controller makes.
     """
-    robot = robot if robot is not None else load_scenario_robot(loaded)
-    controller = build_controller(
-        loaded,
-        settings,
-        robot,
-        context_cls=WrappingContext,
-        keep_problems=keep_problems,
-        wrap=wrap_solver,
-    )
+    robot = run.robot
+    controller = run.make_controller(wrap_solver, keep_problems=keep_problems)
     data = robot.pin_model.createData()
     columns: dict[str, list[float]] = {}
     failures = 0

@@ -120,7 +120,7 @@ def _pick_timing(
     settings. The setting is the one with runs for the most of those keys; among equals the
     paper's solver, else the default, then tier ``default`` and hot before warm before cold.
     With ``recorder``, runs that replay that controller's recording come first."""
-    from wbcbench.bench.sweep import default_solver
+    from wbcbench.qp.registry import default_solver
 
     runs = _one_impl(runs)
     if runs.empty:

@@ -34,9 +34,9 @@ from typing import Any
 
 import numpy as np
 
-from wbcbench.dynamics.osf import OsfModel, OsfParams
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
+from wbcbench.tasks.osf import OsfModel, OsfParams
 
 MODES = ("inline", "periodic:N", "async")
 FIRST_SET_TIMEOUT = 120.0  # [s] for the worker process to start
