@@ -78,9 +78,9 @@ test-numerics: $(STAMP)
 	$(PY) -m pytest -q -n auto --randomly-seed=$(SEED) $(NUMERICS)
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check wbcbench tests benchmarks
-	$(VENV)/bin/ruff format --check wbcbench tests benchmarks
-	$(VENV)/bin/mypy wbcbench
+	$(VENV)/bin/ruff check wbcbench tests benchmarks examples
+	$(VENV)/bin/ruff format --check wbcbench tests benchmarks examples
+	$(VENV)/bin/mypy wbcbench examples/plugin/src
 
 models: $(STAMP)
 	$(PY) -m wbcbench.robots.generator

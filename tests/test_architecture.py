@@ -16,6 +16,7 @@ ROOT = Path(wbcbench.__file__).resolve().parent
 #: wbcbench's packages (and top-level modules), lowest first
 LAYERS: tuple[str, ...] = (
     "errors",
+    "plugins",
     "robots",
     "dynamics",
     "_native",

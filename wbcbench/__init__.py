@@ -8,7 +8,9 @@ What a user script needs is exported here and imported on first use, so that
 - the plugin interface: :class:`Controller` (with :class:`ControllerConfig`,
   :class:`ControllerContext`, :class:`ControlOutput`), :class:`QPSolver`, :class:`Problem`,
   :class:`Solution`, and the ``register_*`` functions that add a controller, a QP backend or a
-  robot from outside the package.
+  robot (a :class:`RobotFile` with its :class:`RobotInfo`) from outside the package, for this
+  process and its runs; a distribution adds them for every process with entry points
+  (:mod:`wbcbench.plugins`).
 """
 
 from importlib import import_module
@@ -29,6 +31,12 @@ _EXPORTS = {
     "QPSolver": "wbcbench.qp.base",
     "Problem": "wbcbench.qp.problem",
     "Solution": "wbcbench.qp.solution",
+    "register_controller": "wbcbench.controllers.registry",
+    "register_solver": "wbcbench.qp.registry",
+    "register_robot": "wbcbench.robots.loader",
+    "RobotFile": "wbcbench.robots.spec",
+    "RobotInfo": "wbcbench.robots.spec",
+    "PluginError": "wbcbench.plugins",
 }
 
 __all__ = sorted(_EXPORTS)

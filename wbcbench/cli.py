@@ -31,16 +31,20 @@ from wbcbench.errors import WbcBenchError
 
 def _cmd_list(args: argparse.Namespace) -> int:
     from wbcbench.bench.provenance import describe_lock_status, lock_status
-    from wbcbench.controllers.registry import CONTROLLERS
+    from wbcbench.controllers.registry import controller_class, controller_origins
     from wbcbench.qp import all_solvers
     from wbcbench.qp.hierarchy import STRATEGY_SUMMARY
-    from wbcbench.robots.loader import available_robots, third_party_robots
+    from wbcbench.robots.loader import available_robots, plugin_robots, third_party_robots
     from wbcbench.robots.third_party import THIRD_PARTY
     from wbcbench.scenarios.load import available_scenarios
 
+    origins, broken = controller_origins()
     print("controllers:")
-    for name, cls in sorted(CONTROLLERS.items()):
-        print(f"  {name:<12} {cls.summary}")
+    for name, origin in origins.items():
+        where = "" if origin.kind == "built-in" else f"  [{origin}]"
+        print(f"  {name:<12} {controller_class(name).summary}{where}")
+    for name, why in broken.items():
+        print(f"  {name:<12} BROKEN: {why}")
     print("hierarchy strategies (hqp's `strategy`; lqp takes the QP ones):")
     for name, text in STRATEGY_SUMMARY.items():
         print(f"  {name:<12} {text}")
@@ -52,6 +56,8 @@ def _cmd_list(args: argparse.Namespace) -> int:
             line += f"  {info['summary']}"
         if info["named_setting"] and info["available"]:
             line += f" [tier {', '.join(info['tiers'])}, mode {', '.join(info['modes'])} only]"
+        if info["origin"] != "built-in":
+            line += f"  [{info['origin']}]"
         print(line.rstrip())
     print("robots:")
     for name in available_robots():
@@ -59,6 +65,11 @@ def _cmd_list(args: argparse.Namespace) -> int:
     for name, missing in third_party_robots().items():
         status = f"missing (pip install '{missing}')" if missing else "available"
         print(f"  {name:<14} {status}  {THIRD_PARTY[name].summary}")
+    found, broken_robots = plugin_robots()
+    for name, (robot, origin) in found.items():
+        print(f"  {name:<14} {robot.summary}  [{origin}]")
+    for name, why in broken_robots.items():
+        print(f"  {name:<14} BROKEN: {why}")
     print("scenarios:")
     for name in available_scenarios():
         print(f"  {name}")

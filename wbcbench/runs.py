@@ -33,7 +33,7 @@ from wbcbench.controllers.registry import (
     validated_config,
 )
 from wbcbench.errors import WbcBenchError
-from wbcbench.qp.registry import default_solver, solver_class
+from wbcbench.qp.registry import DEFAULT_SOLVER, default_solver, solver_class
 from wbcbench.qp.settings import check_mode, check_tier
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.load import (
@@ -66,7 +66,7 @@ class RunSettings:
     """What varies between runs of one scenario: the names as given, ``solver`` resolved."""
 
     controller: str = "qp_wbc"
-    solver: str = "proxqp"
+    solver: str = DEFAULT_SOLVER
     tier: str = "default"
     mode: str = "cold"
     controller_config: dict[str, Any] = field(default_factory=dict)

@@ -161,12 +161,15 @@ class DaskExecutor:
         """As :meth:`SerialExecutor.run`; the workers must see ``folder`` (a local cluster)."""
         from dask.distributed import as_completed
 
+        from wbcbench.plugins import pickled_call, run_pickled
+
         futures = {}
         for job, rid in jobs:
-            # pure=False: identical arguments must still run (a rerun after a code change)
-            future = self._client.submit(
-                run_tracking_guarded, *_arguments(job, rid, version, folder), pure=False
-            )
+            # the registrations of this process are made on the worker before the run is
+            # unpickled; pure=False: identical arguments must still run (a rerun after a code
+            # change)
+            call = pickled_call(run_tracking_guarded, *_arguments(job, rid, version, folder))
+            future = self._client.submit(run_pickled, *call, pure=False)
             futures[future] = job
         try:
             for future in as_completed(futures):

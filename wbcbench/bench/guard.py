@@ -40,6 +40,8 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
 
+from wbcbench import plugins
+
 #: modules the fork server imports before its first fork: what the guarded runs call
 PRELOAD = (
     "wbcbench.bench.runner",
@@ -131,7 +133,7 @@ def _run_child(payload: bytes) -> None:
     """In the forked child: unpickle the call, run it, write the pickled outcome to the result
     file, and leave without the server's exit handlers (``os._exit``)."""
     try:
-        stdout, result_path, path, cwd, env, call = pickle.loads(payload)
+        stdout, result_path, path, cwd, env, saved, call = pickle.loads(payload)
         # the caller's now, not when the server started: its modules, working folder and
         # environment (a test's or a notebook's changes included)
         sys.path[:] = path
@@ -142,8 +144,7 @@ def _run_child(payload: bytes) -> None:
             _redirect_stdout(stdout)
         result: tuple[str, Any]
         try:
-            fn, args, kwargs = pickle.loads(call)
-            result = ("ok", fn(*args, **kwargs))
+            result = ("ok", plugins.run_pickled(saved, call))
         except BaseException as exc:  # the caller reports it; the child must not die silently
             result = ("raised", f"{type(exc).__name__}: {exc}")
         try:
@@ -367,11 +368,11 @@ def call_with_deadline(
 
     try:
         try:
-            call = pickle.dumps((fn, args, kwargs), pickle.HIGHEST_PROTOCOL)
+            saved, call = plugins.pickled_call(fn, *args, **kwargs)
         except Exception as exc:
             return Guarded(None, False, f"the run's arguments do not pickle: {exc}")
         caller = (sys.path, os.getcwd(), dict(os.environ))
-        payload = pickle.dumps((out, result_path, *caller, call), pickle.HIGHEST_PROTOCOL)
+        payload = pickle.dumps((out, result_path, *caller, saved, call), pickle.HIGHEST_PROTOCOL)
         try:
             status = fork_server().run(payload, seconds, waiting)
         except (RuntimeError, OSError) as exc:  # the server could not start or died

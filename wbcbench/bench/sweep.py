@@ -465,11 +465,11 @@ def _check_config_keys(matrix: MatrixSpec, file: str, key: str) -> None:
 
 def _robot_overrides(matrix: MatrixSpec, file: str, key: str) -> list[tuple[str, ...]]:
     """One ``robot=<name>`` override per entry of ``robots`` (checked); ``[()]`` when empty."""
-    from wbcbench.robots.loader import available_robots, third_party_robots
+    from wbcbench.robots.loader import available_robots, plugin_robots, third_party_robots
 
     if not matrix.robots:
         return [()]
-    valid = [*available_robots(), *third_party_robots()]
+    valid = [*available_robots(), *third_party_robots(), *plugin_robots()[0]]
     for i, name in enumerate(matrix.robots):
         if name not in valid:
             raise ScenarioError(

@@ -1,7 +1,9 @@
-"""The explicit table of controller plugins.
+"""The controllers: the built-in table, then registrations and plugins.
 
-Adding a controller: write ``wbcbench/controllers/<name>.py`` with a :class:`Controller`
-subclass, add one line to ``CONTROLLERS`` below; the registry sweep test picks it up.
+Adding a built-in controller: write ``wbcbench/controllers/<name>.py`` with a
+:class:`Controller` subclass, add one line to ``CONTROLLERS`` below; the registry sweep test
+picks it up. From outside the package: an entry point of the group ``wbcbench.controllers``, or
+:func:`register_controller` in a script (:mod:`wbcbench.plugins`).
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from wbcbench import plugins
 from wbcbench.controllers.base import Controller, ControllerConfig, ControllerContext
 from wbcbench.controllers.hqp import Hqp
 from wbcbench.controllers.kin_hqp import KinHqp
@@ -33,18 +36,67 @@ CONTROLLERS: dict[str, type[Controller]] = {
 }
 
 
+GROUP = "wbcbench.controllers"
+
+
+def _check(name: str, obj: object) -> str:
+    """Why ``obj`` cannot be the controller ``name`` ("" when it can)."""
+    if not (isinstance(obj, type) and issubclass(obj, Controller)):
+        return f"{obj!r} is not a subclass of wbcbench.Controller"
+    if obj.name != name:
+        return f"its class says name = {obj.name!r}; the entry's name must be the same"
+    if name in CONTROLLERS:
+        return f"{name!r} is a built-in controller; choose another name"
+    return ""
+
+
 def available_controllers() -> list[str]:
-    return sorted(CONTROLLERS)
+    """The built-in controllers, then the registered and plugin ones that load."""
+    return sorted({*CONTROLLERS, *plugins.external(GROUP, _check)[0]})
+
+
+def controller_origins() -> tuple[dict[str, plugins.Origin], dict[str, str]]:
+    """Every controller's origin (built-in, registered, a plugin's distribution), and the
+    plugin entries that do not load, with why."""
+    found, broken = plugins.external(GROUP, _check)
+    origins = {name: plugins.BUILT_IN for name in CONTROLLERS}
+    origins.update({name: origin for name, (_, origin) in found.items()})
+    return dict(sorted(origins.items())), broken
 
 
 def controller_class(name: str) -> type[Controller]:
-    """The class registered under ``name``; unknown names list the valid ones."""
-    try:
+    """The class of controller ``name``: built in, registered, or a plugin's.
+
+    Raises:
+        UnknownNameError: no such controller (listing the valid ones).
+        PluginError: a plugin entry of that name that does not load (naming its distribution).
+    """
+    if name in CONTROLLERS:
         return CONTROLLERS[name]
-    except KeyError:
+    found = plugins.find(GROUP, name, _check)
+    if found is None:
         raise UnknownNameError(
-            "controller", name, CONTROLLERS, hint="see `wbcbench list` for what each one does"
-        ) from None
+            "controller",
+            name,
+            available_controllers(),
+            hint="see `wbcbench list` for what each one does",
+        )
+    cls: type[Controller] = found[0]
+    return cls
+
+
+def register_controller(cls: type[Controller], replace: bool = False) -> None:
+    """Add a controller class under its ``name`` for this process and its runs (a guarded
+    child, a Dask worker of a sweep). The class must be importable by its module and name.
+
+    Raises:
+        PluginError: not a Controller subclass, a built-in name, a name registered already
+            (without ``replace``), or a class that cannot be imported by name.
+    """
+    problem = _check(getattr(cls, "name", ""), cls)
+    if problem:
+        raise plugins.PluginError(f"register_controller({cls!r}): {problem}")
+    plugins.register(GROUP, cls.name, cls, replace)
 
 
 def make_controller(

@@ -6,11 +6,15 @@ mode and update policy, e.g. ``osqp_libdwbc``): chosen by name like a backend, a
 and mode they define (:meth:`QPSolver.check_choice` names them). ``qpsolvers:<name>`` runs a
 library through qpsolvers.
 
-Adding a backend: write ``wbcbench/qp/backends/<name>.py`` with a :class:`QPSolver` subclass,
-add one line to :data:`BACKENDS`, and the registry sweep in ``tests/test_qp_backends.py`` picks
-it up (a named setting: a subclass of its backend with ``tiers`` / ``modes`` narrowed, one line
-in :data:`NAMED_SETTINGS`). Names are looked up here before any backend is imported, so an error
-inside a backend is never mistaken for "no such solver".
+From outside the package, a backend is an entry point of the group ``wbcbench.solvers`` (a
+:class:`QPSolver` subclass), or :func:`register_solver` in a script (:mod:`wbcbench.plugins`).
+
+Adding a built-in backend: write ``wbcbench/qp/backends/<name>.py`` with a
+:class:`QPSolver` subclass, add one line to :data:`BACKENDS`, and the registry sweep in
+``tests/test_qp_backends.py`` picks it up (a named setting: a subclass of its backend with
+``tiers`` / ``modes`` narrowed, one line in :data:`NAMED_SETTINGS`). Names are looked up here
+before any backend is imported, so an error inside a backend is never mistaken for "no such
+solver".
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, TypedDict
 
+from wbcbench import plugins
 from wbcbench.errors import UnknownNameError
 from wbcbench.qp.base import QPSolver
 from wbcbench.qp.settings import check_mode, check_tier
@@ -75,23 +80,76 @@ CAPS_PASS_THROUGH: tuple[str, ...] = ("clarabel", "highs", "osqp")
 UNKNOWN_HINT = "wbcbench.qp.all_solvers() lists every backend with its availability and version"
 
 
-def _all_names() -> list[str]:
+GROUP = "wbcbench.solvers"
+
+
+def _builtin_names() -> list[str]:
     return sorted([*BACKENDS, *NAMED_SETTINGS, *(QPSOLVERS_PREFIX + n for n in QPSOLVERS_NAMES)])
+
+
+def _all_names() -> list[str]:
+    """Built-in names, then the registered and plugin backends that load."""
+    return sorted([*_builtin_names(), *plugins.external(GROUP, _check)[0]])
 
 
 def _entry(name: str) -> BackendEntry:
     return BACKENDS[name] if name in BACKENDS else NAMED_SETTINGS[name]
 
 
-def _known(name: str) -> bool:
+def _builtin(name: str) -> bool:
     if name.startswith(QPSOLVERS_PREFIX):
         return name[len(QPSOLVERS_PREFIX) :] in QPSOLVERS_NAMES
     return name in BACKENDS or name in NAMED_SETTINGS
 
 
-@cache
+def _check(name: str, obj: object) -> str:
+    """Why ``obj`` cannot be the backend ``name`` ("" when it can)."""
+    if not (isinstance(obj, type) and issubclass(obj, QPSolver)):
+        return f"{obj!r} is not a subclass of wbcbench.QPSolver"
+    if _builtin(name):
+        return f"{name!r} is a built-in solver name; choose another"
+    return ""
+
+
+def _known(name: str) -> bool:
+    return _builtin(name) or plugins.find(GROUP, name, _check) is not None
+
+
 def _load(name: str) -> type[QPSolver] | None:
-    """The backend class, or ``None`` when its library is not installed."""
+    """The backend class, or ``None`` when its library is not installed (built in) or no
+    registration or plugin has the name."""
+    if _builtin(name):
+        return _load_builtin(name)
+    found = plugins.find(GROUP, name, _check)
+    return None if found is None else found[0]
+
+
+def register_solver(cls: type[QPSolver], name: str = "", replace: bool = False) -> None:
+    """Add a QP backend class under ``name`` (default: its ``name``) for this process and its
+    runs (a guarded child, a Dask worker of a sweep). The class must be importable by its
+    module and name.
+
+    Raises:
+        PluginError: not a QPSolver subclass, a built-in name, a name registered already
+            (without ``replace``), or a class that cannot be imported by name.
+    """
+    name = name or cls.name
+    problem = _check(name, cls)
+    if problem:
+        raise plugins.PluginError(f"register_solver({cls!r}): {problem}")
+    plugins.register(GROUP, name, cls, replace)
+
+
+def solver_origins() -> tuple[dict[str, plugins.Origin], dict[str, str]]:
+    """The origin of every backend name that is not built in (registered, or a plugin's
+    distribution), and the plugin entries that do not load, with why."""
+    found, broken = plugins.external(GROUP, _check)
+    return {name: origin for name, (_, origin) in found.items()}, broken
+
+
+@cache
+def _load_builtin(name: str) -> type[QPSolver] | None:
+    """A built-in backend's class, or ``None`` when its library is not installed."""
     if name.startswith(QPSOLVERS_PREFIX):
         inner = name[len(QPSOLVERS_PREFIX) :]
         try:
@@ -140,6 +198,7 @@ class SolverInfo(TypedDict):
     named_setting: bool
     tiers: tuple[str, ...]
     modes: tuple[str, ...]
+    origin: str
 
 
 def available_solvers() -> list[str]:
@@ -148,8 +207,10 @@ def available_solvers() -> list[str]:
 
 
 def available_backends() -> list[str]:
-    """Installed :data:`BACKENDS` (every library once, through its own API), sorted."""
-    return [name for name in sorted(BACKENDS) if _load(name) is not None]
+    """Installed :data:`BACKENDS` (every library once, through its own API) and the
+    registered and plugin backends that load, sorted."""
+    external = plugins.external(GROUP, _check)[0]
+    return sorted([*(n for n in BACKENDS if _load(n) is not None), *external])
 
 
 #: the backend a run solves with when none is named: the sweeps', the API's, the recordings'
@@ -172,9 +233,15 @@ def all_solvers() -> list[SolverInfo]:
     ``named_setting`` marks the entries of :data:`NAMED_SETTINGS`.
     """
     out: list[SolverInfo] = []
+    external, broken = plugins.external(GROUP, _check)
     for name in _all_names():
         cls = _load(name)
-        if name.startswith(QPSOLVERS_PREFIX):
+        origin = "built-in"
+        if name in external:
+            origin = str(external[name][1])
+            version = external[name][1].distribution.rpartition(" ")[2]
+            reason = ""
+        elif name.startswith(QPSOLVERS_PREFIX):
             inner = name[len(QPSOLVERS_PREFIX) :]
             dist = BACKENDS[inner].distribution if inner in BACKENDS else inner
             version = f"qpsolvers {_version('qpsolvers')}, {dist} {_version(dist)}"
@@ -195,6 +262,24 @@ def all_solvers() -> list[SolverInfo]:
                 named_setting=name in NAMED_SETTINGS,
                 tiers=cls.tiers if cls else (),
                 modes=cls.modes if cls else (),
+                origin=origin,
+            )
+        )
+    for name, why in broken.items():
+        out.append(
+            SolverInfo(
+                name=name,
+                available=False,
+                version="",
+                reason=why,
+                warm_start=False,
+                hot_start=False,
+                internal_time="",
+                summary="",
+                named_setting=False,
+                tiers=(),
+                modes=(),
+                origin="plugin",
             )
         )
     return out

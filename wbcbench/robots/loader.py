@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from wbcbench import plugins
 from wbcbench.errors import ModelError, UnknownNameError
 from wbcbench.robots.generator import MODELS_DIR
 from wbcbench.robots.library import SPECS
@@ -32,7 +33,7 @@ from wbcbench.robots.sources import (
     resolve_package_path,
     write_for_pinocchio,
 )
-from wbcbench.robots.spec import RobotInfo
+from wbcbench.robots.spec import RobotFile, RobotInfo
 from wbcbench.robots.third_party import THIRD_PARTY
 
 _MODEL_SUFFIXES = (".xml", ".mjcf", ".urdf")
@@ -41,6 +42,37 @@ _MODEL_SUFFIXES = (".xml", ".mjcf", ".urdf")
 def available_robots() -> list[str]:
     """Names of the generated robots that ``load_robot`` accepts (sorted)."""
     return sorted(SPECS)
+
+
+GROUP = "wbcbench.robots"
+
+
+def _check(name: str, obj: object) -> str:
+    """Why ``obj`` cannot be the robot ``name`` ("" when it can)."""
+    if not isinstance(obj, RobotFile):
+        return f"{obj!r} is not a wbcbench.robots.spec.RobotFile"
+    if name in SPECS or name in THIRD_PARTY:
+        return f"{name!r} is a built-in robot name; choose another"
+    return ""
+
+
+def plugin_robots() -> tuple[dict[str, tuple[RobotFile, plugins.Origin]], dict[str, str]]:
+    """The registered and plugin robots that load (name → file, origin), and the plugin
+    entries that do not, with why."""
+    return plugins.external(GROUP, _check)
+
+
+def register_robot(name: str, robot: RobotFile, replace: bool = False) -> None:
+    """Add a robot under ``name`` (a scenario's ``robot: name``) for this process and its runs.
+
+    Raises:
+        PluginError: not a RobotFile, a built-in name, or a name registered already (without
+            ``replace``).
+    """
+    problem = _check(name, robot)
+    if problem:
+        raise plugins.PluginError(f"register_robot({name!r}): {problem}")
+    plugins.register(GROUP, name, robot, replace)
 
 
 def third_party_robots() -> dict[str, str]:
@@ -226,6 +258,12 @@ def load_robot(
                 f"pip install '{entry.distribution}' (or 'wbcbench[robots]')"
             ) from None
         return _cached_load(path, text, entry.info, shares)
+    found = plugins.find(GROUP, text, _check)
+    if found is not None:
+        robot: RobotFile = found[0]
+        if not Path(robot.path).is_file():
+            raise ModelError(f"robot {text!r} ({found[1]}): {robot.path}: no such model file")
+        return _cached_load(Path(robot.path), text, robot.info, tuple(robot.package_dirs))
     looks_like_path = (
         isinstance(name_or_path, os.PathLike)
         or text.lower().endswith(_MODEL_SUFFIXES)
@@ -236,7 +274,7 @@ def load_robot(
         raise UnknownNameError(
             "robot",
             text,
-            [*available_robots(), *THIRD_PARTY],
+            [*available_robots(), *THIRD_PARTY, *plugin_robots()[0]],
             hint="or give a path to an MJCF/URDF file",
         )
     path = Path(text).expanduser()

@@ -16,6 +16,7 @@ just different lists, which is how a DoF-scaled family is built from one torso.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -367,3 +368,21 @@ def mirror_link(
 def mirror_chain(chain: ChainSpec) -> ChainSpec:
     """Right-side twin of a left chain attached to the same parent."""
     return ChainSpec(chain.parent, tuple(mirror_link(link) for link in chain.links))
+
+
+@dataclass(frozen=True)
+class RobotFile:
+    """A robot model file and the facts the file does not carry: what a robot plugin (entry
+    point group ``wbcbench.robots``) or :func:`wbcbench.register_robot` provides.
+
+    Attributes:
+        path: the MJCF (with a free joint) or URDF file.
+        info: contact frames and sole sizes, hand, base and torso frames, the keyframe.
+        summary: one line for ``wbcbench list``.
+        package_dirs: folders holding the packages of the file's ``package://`` paths.
+    """
+
+    path: Path
+    info: RobotInfo
+    summary: str = ""
+    package_dirs: tuple[Path, ...] = ()

@@ -1,0 +1,2 @@
+"""An example wbcbench plugin: a controller, a QP backend and a robot, declared as entry points
+in this distribution's ``pyproject.toml``."""
