@@ -37,6 +37,9 @@ PAPER, OURS = "#9e9e9e", "#1f77b4"
 CONVENTIONAL, PROPOSED = "#d62728", "#2ca02c"
 
 
+__all__ = ["FIGURES", "write_paper_figures"]
+
+
 def _save(fig: plt.Figure, out: Path, name: str) -> list[Path]:
     paths = [out / f"{name}.png", out / f"{name}.svg"]
     for p in paths:
@@ -280,6 +283,7 @@ def rc_lqp_dof(t: PaperTable, out: Path) -> list[Path]:
     return _save(fig, out, "paper_rc_lqp_dof")
 
 
+#: paper table name → the function drawing its key figure from the table (into a folder)
 FIGURES = {
     "to_osf_s1": to_osf_s1,
     "to_osf_s2": to_osf_s2,

@@ -27,6 +27,16 @@ from matplotlib.ticker import FuncFormatter, MaxNLocator
 from wbcbench.report.load import Results, load_results
 from wbcbench.tasks.tasks import ERROR_UNITS
 
+__all__ = [
+    "hls_figure",
+    "level_figure",
+    "size_figures",
+    "solver_figures",
+    "timing_solver_figure",
+    "tracking_figures",
+    "write_plots",
+]
+
 MAX_POINTS = 800  # per line: keeps the SVG files small
 
 
@@ -278,6 +288,8 @@ def timing_solver_figure(res: Results, out: Path) -> list[Path]:
 
 
 def solver_figures(res: Results, out: Path) -> list[Path]:
+    """The solver comparison's success rate and shifted geometric mean solve time per solver,
+    tier and mode (``solvers_success``, ``solvers_time``) into ``out``; none without solves."""
     from wbcbench.report.solvers import summarize
 
     s = summarize(res.qp_solves)
@@ -307,6 +319,8 @@ def solver_figures(res: Results, out: Path) -> list[Path]:
 
 
 def hls_figure(res: Results, out: Path) -> list[Path]:
+    """RQR-HQP Fig. 1: median hierarchy solve time against the problem size N per algorithm
+    and impl (``rqr_fig1``) into ``out``; none without the scaling rows."""
     from wbcbench.report.tables import rqr_fig1
 
     table = rqr_fig1(res)

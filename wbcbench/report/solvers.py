@@ -21,6 +21,9 @@ from wbcbench.qp.settings import TIER_TIME_LIMIT
 # -- the report
 
 
+__all__ = ["KNOWN_LIMITATIONS", "summarize", "write_report"]
+
+
 def summarize(solves: pd.DataFrame) -> pd.DataFrame:
     """Per solver × tier × mode: success rate, timing aggregates, iterations, residuals.
 
