@@ -40,6 +40,7 @@ PACKAGES = (
     "quadprog",
     "highspy",
     "casadi",
+    "pyqpmad",
 )
 
 

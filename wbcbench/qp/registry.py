@@ -43,6 +43,7 @@ BACKENDS: dict[str, BackendEntry] = {
     "osqp": BackendEntry("wbcbench.qp.backends.osqp", "OSQPSolver", "osqp"),
     "piqp": BackendEntry("wbcbench.qp.backends.piqp", "PIQPSolver", "piqp"),
     "proxqp": BackendEntry("wbcbench.qp.backends.proxqp", "ProxQPSolver", "proxsuite"),
+    "qpmad": BackendEntry("wbcbench.qp.backends.qpmad", "QpmadSolver", "pyqpmad"),
     "qpoases": BackendEntry("wbcbench.qp.backends.qpoases", "QpOASESSolver", "casadi"),
     "quadprog": BackendEntry("wbcbench.qp.backends.quadprog", "QuadprogSolver", "quadprog"),
 }
