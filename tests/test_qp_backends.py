@@ -230,10 +230,21 @@ def test_wbc_like_problem(name: str, mode: str) -> None:
         assert sol.status is SolutionStatus.FAILED
         assert "positive definite" in sol.message
         return
+    scale = max(1.0, float(np.max(np.abs(WBC_REF))))
+    if name == "eiquadprog":
+        # Its stopping test accepts a sum of infeasibilities up to n_in·ε·tr(H)·tr(L⁻ᵀ)·100 (the
+        # product of traces estimates H's condition): 0.16 here, where H is shifted by 2.3e-8.
+        # It reports this QP optimal 0.10 outside an inequality; the independent check refuses
+        # that answer.
+        sol = solver.solve(WBC)
+        assert sol.status is SolutionStatus.SOLVED, sol.message
+        assert "H not positive definite: solved with H + " in sol.message
+        v = check_solution(WBC, sol, tol=1e-6 * scale)
+        assert not v.ok and 0.05 < v.primal_residual < 0.16, v
+        return
     for _ in range(2):
         sol = solver.solve(WBC)
         assert sol.status is SolutionStatus.SOLVED, sol.message
-        scale = max(1.0, float(np.max(np.abs(WBC_REF))))
         v = check_solution(WBC, sol, tol=1e-6 * scale)
         assert v.primal_residual <= 1e-6 * scale, v
         assert v.distance_to(WBC_REF) <= 1e-6 * scale, v.distance_to(WBC_REF)
@@ -271,7 +282,7 @@ def test_proxqp_stops_on_an_infeasible_level_it_does_not_detect() -> None:
         if tier == "default":
             sol = solver.solve(problem)
             assert sol.status in (SolutionStatus.MAX_ITER, SolutionStatus.INFEASIBLE), sol.message
-    for name in ("quadprog", "daqp", "clarabel", "qpmad"):
+    for name in ("quadprog", "daqp", "clarabel", "qpmad", "eiquadprog"):
         if name in INSTALLED:
             assert make_solver(name).solve(problem).status is SolutionStatus.INFEASIBLE, name
 

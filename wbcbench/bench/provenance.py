@@ -41,6 +41,7 @@ PACKAGES = (
     "highspy",
     "casadi",
     "pyqpmad",
+    "eiquadprog",
 )
 
 

@@ -35,10 +35,12 @@ class BackendEntry:
     distribution: str
 
 
-#: name → backend. Every entry uses the library's native API.
+#: name → backend. Every entry uses the library's native API (eiquadprog's is C++: its backend
+#: solves through the native module, and is available only where that is built).
 BACKENDS: dict[str, BackendEntry] = {
     "clarabel": BackendEntry("wbcbench.qp.backends.clarabel", "ClarabelSolver", "clarabel"),
     "daqp": BackendEntry("wbcbench.qp.backends.daqp", "DAQPSolver", "daqp"),
+    "eiquadprog": BackendEntry("wbcbench.qp.backends.eiquadprog", "EiquadprogSolver", "eiquadprog"),
     "highs": BackendEntry("wbcbench.qp.backends.highs", "HiGHSSolver", "highspy"),
     "osqp": BackendEntry("wbcbench.qp.backends.osqp", "OSQPSolver", "osqp"),
     "piqp": BackendEntry("wbcbench.qp.backends.piqp", "PIQPSolver", "piqp"),
@@ -90,9 +92,15 @@ def _known(name: str) -> bool:
     return name in BACKENDS or name in NAMED_SETTINGS
 
 
+#: name → why its module did not import, for the entries whose library is installed (e.g.
+#: eiquadprog without the native module)
+_LOAD_ERRORS: dict[str, str] = {}
+
+
 @cache
 def _load(name: str) -> type[QPSolver] | None:
-    """The backend class, or ``None`` when its library is not installed."""
+    """The backend class, or ``None`` when its library is not installed or its module does not
+    import (then :data:`_LOAD_ERRORS` says why)."""
     if name.startswith(QPSOLVERS_PREFIX):
         inner = name[len(QPSOLVERS_PREFIX) :]
         try:
@@ -114,10 +122,20 @@ def _load(name: str) -> type[QPSolver] | None:
     entry = _entry(name)
     try:
         module = importlib.import_module(entry.module)
-    except ImportError:
+    except ImportError as exc:
+        if _version(entry.distribution):
+            _LOAD_ERRORS[name] = str(exc)
         return None
     cls: type[QPSolver] = getattr(module, entry.cls)
     return cls
+
+
+def _unavailable(name: str) -> str:
+    """Why the backend ``name`` (not a qpsolvers wrapper) is not available."""
+    dist = _entry(name).distribution
+    if name in _LOAD_ERRORS:
+        return f"package {dist!r} is installed, but the backend does not load: {_LOAD_ERRORS[name]}"
+    return f"package {dist!r} not installed"
 
 
 def _version(distribution: str) -> str:
@@ -172,7 +190,7 @@ def all_solvers() -> list[SolverInfo]:
             reason = f"qpsolvers does not offer {inner!r} here"
         else:
             version = _version(_entry(name).distribution)
-            reason = f"package {_entry(name).distribution!r} not installed"
+            reason = _unavailable(name)
         out.append(
             SolverInfo(
                 name=name,
@@ -203,17 +221,19 @@ def solver_class(name: str) -> type[QPSolver]:
         raise UnknownNameError("solver", name, available_solvers(), hint=UNKNOWN_HINT)
     cls = _load(name)
     if cls is None:
-        if name.startswith(QPSOLVERS_PREFIX):
-            missing = "qpsolvers (with this solver)"
+        if name in _LOAD_ERRORS:
+            hint = f"{name!r} is a known backend but {_unavailable(name)}"
         else:
-            missing = _entry(name).distribution
-        raise UnknownNameError(
-            "solver",
-            name,
-            available_solvers(),
-            hint=f"{name!r} is a known backend but its package is not installed: "
-            f"pip install {missing}",
-        )
+            missing = (
+                "qpsolvers (with this solver)"
+                if name.startswith(QPSOLVERS_PREFIX)
+                else _entry(name).distribution
+            )
+            hint = (
+                f"{name!r} is a known backend but its package is not installed: "
+                f"pip install {missing}"
+            )
+        raise UnknownNameError("solver", name, available_solvers(), hint=hint)
     return cls
 
 
