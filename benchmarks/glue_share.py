@@ -34,7 +34,18 @@ from collections import Counter
 from pathlib import Path
 
 CATEGORIES = ("pinocchio", "linear algebra", "solver", "module code", "glue")
-SOLVER_LIBS = ("daqp", "proxsuite", "qpoases", "osqp", "piqp", "clarabel", "highs", "quadprog")
+SOLVER_LIBS = (
+    "daqp",
+    "proxsuite",
+    "qpoases",
+    "osqp",
+    "piqp",
+    "clarabel",
+    "highs",
+    "quadprog",
+    "qpmad",
+    "eiquadprog",
+)
 
 
 def classify(dso: str, symbol: str) -> str:

@@ -184,7 +184,7 @@ CONTROLLERS: list[tuple[str, dict[str, Any], str]] = [
     ("hqp", {"strategy": "cascade", "finals": ["torque"]}, "nullspace"),
     ("hqp", {"strategy": "nullspace", "finals": ["wrench", "zero_torque_energy"]}, "cascade"),
 ]
-ACTIVE_SET = {"quadprog", "qpoases", "daqp"}
+ACTIVE_SET = {"quadprog", "qpoases", "daqp", "qpmad", "eiquadprog"}
 #: (controller, backend) → cases where the backend runs for tens of seconds per state in either
 #: impl (OSQP and HiGHS at tier high to their caps on these semidefinite level QPs; ProxQP,
 #: which has no time cap, for minutes on the HQP's wall states); the rest of its cases run

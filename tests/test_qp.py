@@ -170,6 +170,23 @@ def test_unknown_solver_message_lists_installed_names() -> None:
     assert isinstance(err.value, KeyError)
 
 
+def test_a_backend_whose_module_does_not_load_says_why(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Its library installed but its module not importable (eiquadprog without the native
+    module): the reason names that, not a missing package."""
+    from wbcbench.qp import registry
+
+    entry = registry.BackendEntry("wbcbench.qp.backends.no_such_module", "Nope", "numpy")
+    monkeypatch.setitem(registry.BACKENDS, "nope_backend", entry)
+    info = next(i for i in qp.all_solvers() if i["name"] == "nope_backend")
+    assert not info["available"]
+    assert info["reason"] == (
+        "package 'numpy' is installed, but the backend does not load: "
+        "No module named 'wbcbench.qp.backends.no_such_module'"
+    )
+    with pytest.raises(UnknownNameError, match="'nope_backend' is a known backend but package"):
+        make_solver("nope_backend")
+
+
 def test_unknown_tier_and_mode_messages() -> None:
     with pytest.raises(UnknownNameError) as err:
         make_solver("proxqp", tier="ultra")

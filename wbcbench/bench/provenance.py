@@ -40,6 +40,8 @@ PACKAGES = (
     "quadprog",
     "highspy",
     "casadi",
+    "pyqpmad",
+    "eiquadprog",
 )
 
 

@@ -40,14 +40,17 @@ class BackendEntry:
     distribution: str
 
 
-#: name → backend. Every entry uses the library's native API.
+#: name → backend. Every entry uses the library's native API (eiquadprog's is C++: its backend
+#: solves through the native module, and is available only where that is built).
 BACKENDS: dict[str, BackendEntry] = {
     "clarabel": BackendEntry("wbcbench.qp.backends.clarabel", "ClarabelSolver", "clarabel"),
     "daqp": BackendEntry("wbcbench.qp.backends.daqp", "DAQPSolver", "daqp"),
+    "eiquadprog": BackendEntry("wbcbench.qp.backends.eiquadprog", "EiquadprogSolver", "eiquadprog"),
     "highs": BackendEntry("wbcbench.qp.backends.highs", "HiGHSSolver", "highspy"),
     "osqp": BackendEntry("wbcbench.qp.backends.osqp", "OSQPSolver", "osqp"),
     "piqp": BackendEntry("wbcbench.qp.backends.piqp", "PIQPSolver", "piqp"),
     "proxqp": BackendEntry("wbcbench.qp.backends.proxqp", "ProxQPSolver", "proxsuite"),
+    "qpmad": BackendEntry("wbcbench.qp.backends.qpmad", "QpmadSolver", "pyqpmad"),
     "qpoases": BackendEntry("wbcbench.qp.backends.qpoases", "QpOASESSolver", "casadi"),
     "quadprog": BackendEntry("wbcbench.qp.backends.quadprog", "QuadprogSolver", "quadprog"),
 }
@@ -147,9 +150,15 @@ def solver_origins() -> tuple[dict[str, plugins.Origin], dict[str, str]]:
     return {name: origin for name, (_, origin) in found.items()}, broken
 
 
+#: name → why its module did not import, for the entries whose library is installed (e.g.
+#: eiquadprog without the native module)
+_LOAD_ERRORS: dict[str, str] = {}
+
+
 @cache
 def _load_builtin(name: str) -> type[QPSolver] | None:
-    """A built-in backend's class, or ``None`` when its library is not installed."""
+    """A built-in backend's class, or ``None`` when its library is not installed or its module
+    does not import (then :data:`_LOAD_ERRORS` says why)."""
     if name.startswith(QPSOLVERS_PREFIX):
         inner = name[len(QPSOLVERS_PREFIX) :]
         try:
@@ -171,10 +180,20 @@ def _load_builtin(name: str) -> type[QPSolver] | None:
     entry = _entry(name)
     try:
         module = importlib.import_module(entry.module)
-    except ImportError:
+    except ImportError as exc:
+        if _version(entry.distribution):
+            _LOAD_ERRORS[name] = str(exc)
         return None
     cls: type[QPSolver] = getattr(module, entry.cls)
     return cls
+
+
+def _unavailable(name: str) -> str:
+    """Why the backend ``name`` (not a qpsolvers wrapper) is not available."""
+    dist = _entry(name).distribution
+    if name in _LOAD_ERRORS:
+        return f"package {dist!r} is installed, but the backend does not load: {_LOAD_ERRORS[name]}"
+    return f"package {dist!r} not installed"
 
 
 def _version(distribution: str) -> str:
@@ -248,7 +267,7 @@ def all_solvers() -> list[SolverInfo]:
             reason = f"qpsolvers does not offer {inner!r} here"
         else:
             version = _version(_entry(name).distribution)
-            reason = f"package {_entry(name).distribution!r} not installed"
+            reason = _unavailable(name)
         out.append(
             SolverInfo(
                 name=name,
@@ -297,17 +316,19 @@ def solver_class(name: str) -> type[QPSolver]:
         raise UnknownNameError("solver", name, available_solvers(), hint=UNKNOWN_HINT)
     cls = _load(name)
     if cls is None:
-        if name.startswith(QPSOLVERS_PREFIX):
-            missing = "qpsolvers (with this solver)"
+        if name in _LOAD_ERRORS:
+            hint = f"{name!r} is a known backend but {_unavailable(name)}"
         else:
-            missing = _entry(name).distribution
-        raise UnknownNameError(
-            "solver",
-            name,
-            available_solvers(),
-            hint=f"{name!r} is a known backend but its package is not installed: "
-            f"pip install {missing}",
-        )
+            missing = (
+                "qpsolvers (with this solver)"
+                if name.startswith(QPSOLVERS_PREFIX)
+                else _entry(name).distribution
+            )
+            hint = (
+                f"{name!r} is a known backend but its package is not installed: "
+                f"pip install {missing}"
+            )
+        raise UnknownNameError("solver", name, available_solvers(), hint=hint)
     return cls
 
 

@@ -81,11 +81,19 @@ def _nanmax(x: pd.Series) -> float:
 KNOWN_LIMITATIONS = """\
 - Times are Python wall times around each backend's native call (plus building or updating its
   object, `setup`), measured serially with one BLAS thread on the machine above; `internal` is
-  each solver's own timer where it has one (quadprog and HiGHS-through-qpsolvers have none).
+  each solver's own timer where it has one (quadprog, qpmad, eiquadprog and
+  HiGHS-through-qpsolvers have none). eiquadprog has no Python binding: its rows are the C++
+  library called through wbcbench's native module, `wall` timed in C++ around `solve_quadprog`,
+  `setup` including the copy of the QP into the module's buffers.
 - The `default` tier keeps each solver's own settings, so its rows are not iso-accuracy; their
   success is judged at 1e-6 × the data's magnitude. The other tiers set absolute tolerances
-  (1e-3, 1e-6, 1e-9) that each backend translates as best its options allow (active-set solvers
-  such as quadprog and qpOASES have no such tolerance).
+  (1e-3, 1e-6, 1e-9) that each backend translates as best its options allow (the active-set
+  solvers quadprog, qpOASES, qpmad and eiquadprog have no such tolerance).
+- The Goldfarb–Idnani solvers (quadprog, qpmad, eiquadprog) need a positive definite Hessian:
+  a semidefinite one is solved as H + δI (the smallest δ = 1e-12 · 100^k · max(1, max |H_ii|)
+  that factorises), which moves the optimum by O(δ); such rows say so in their message. They
+  take no initial guess, so their `warm` rows are cold solves; `hot` keeps the solver object
+  (and, for qpmad, the Hessian's Cholesky factor while H is unchanged).
 - Validity is checked independently of the reported status (primal and dual residuals, duality
   gap) at the tier's tolerance scaled by max(1, |g|, |b|, finite bounds): WBC problems carry
   forces of hundreds of newtons and weights up to 1e3, so a purely absolute 1e-9 would fail every

@@ -1,4 +1,5 @@
-"""Conversions several backends share: one-sided row splits and fixed sparsity patterns."""
+"""Conversions several backends share: one-sided row splits, fixed sparsity patterns and the
+shift that makes a Hessian positive definite."""
 
 from __future__ import annotations
 
@@ -13,6 +14,33 @@ from wbcbench.qp.settings import TIER_EPS
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
 Index = NDArray[np.intp]
+
+
+#: Relative size of the diagonal shift :func:`positive_definite` starts from.
+REGULARISATION = 1e-12
+
+
+def positive_definite(H: Array, delta_rel: float = REGULARISATION) -> tuple[Array, float]:
+    """``(H + δI, δ)`` for the backends that need a positive definite Hessian (Goldfarb–Idnani's
+    dual methods start from ``H``'s Cholesky factor): ``δ = 0`` when ``H`` is already PD, else
+    ``δ = delta_rel · max(1, max |H_ii|)`` multiplied by 100 until the factorisation succeeds
+    (eight tries at most)."""
+    try:
+        np.linalg.cholesky(H)
+        return H, 0.0
+    except np.linalg.LinAlgError:
+        pass
+    scale = max(1.0, float(np.max(np.abs(np.diag(H)), initial=0.0)))
+    delta = delta_rel * scale
+    eye = np.eye(H.shape[0])
+    for _ in range(8):
+        G = H + delta * eye
+        try:
+            np.linalg.cholesky(G)
+            return G, delta
+        except np.linalg.LinAlgError:
+            delta *= 100.0
+    return H + delta * eye, delta
 
 
 def tier_eps(tier: str) -> float | None:

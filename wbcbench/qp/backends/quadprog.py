@@ -7,8 +7,9 @@ are mapped back to the shared convention (``y = −λ_eq``, ``z = λ_up − λ_l
 
 quadprog needs a strictly positive definite ``G``. When ``H`` is not (its Cholesky
 factorisation fails), this backend solves with ``H + δI``, ``δ = 1e-12 · max(1, max |H_ii|)``,
-multiplied by 100 until the factorisation succeeds; this perturbs the optimum by ``O(δ)`` in the
-cost and ``Solution.message`` states the ``δ`` used. A PD ``H`` is passed unchanged.
+multiplied by 100 until the factorisation succeeds (:func:`~wbcbench.qp.backends._common.
+positive_definite`); this perturbs the optimum by ``O(δ)`` in the cost and ``Solution.message``
+states the ``δ`` used. A PD ``H`` is passed unchanged.
 
 No warm or hot start (``warm`` and ``hot`` run ``cold``); no internal timer; tiers do not apply
 (the active-set method is exact up to round-off).
@@ -21,35 +22,12 @@ import time
 import numpy as np
 import quadprog as _quadprog
 
-from wbcbench.qp.backends._common import split_rows
+from wbcbench.qp.backends._common import positive_definite, split_rows
 from wbcbench.qp.base import Guess, QPSolver
-from wbcbench.qp.problem import Array, Problem
+from wbcbench.qp.problem import Problem
 from wbcbench.qp.solution import Solution, SolutionStatus
 
 LIBRARY = "quadprog"
-
-#: Relative size of the diagonal shift used when ``H`` is not positive definite.
-REGULARISATION = 1e-12
-
-
-def positive_definite(H: Array, delta_rel: float = REGULARISATION) -> tuple[Array, float]:
-    """``(H + δI, δ)`` with ``δ = 0`` when ``H`` is already PD (see the module docstring)."""
-    try:
-        np.linalg.cholesky(H)
-        return H, 0.0
-    except np.linalg.LinAlgError:
-        pass
-    scale = max(1.0, float(np.max(np.abs(np.diag(H)), initial=0.0)))
-    delta = delta_rel * scale
-    eye = np.eye(H.shape[0])
-    for _ in range(8):
-        G = H + delta * eye
-        try:
-            np.linalg.cholesky(G)
-            return G, delta
-        except np.linalg.LinAlgError:
-            delta *= 100.0
-    return H + delta * eye, delta
 
 
 class QuadprogSolver(QPSolver):

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "bind/bind.hpp"
+#include "qp/eiquadprog_solver.hpp"
 #include "qp/native_solvers.hpp"
 #include "qp/osqp_solver.hpp"
 #include "qp/qpoases_solver.hpp"
@@ -71,6 +72,16 @@ void bind_solvers(nb::module_& m) {
             new (self) QpOasesSolver(mode_of(mode), options);
           },
           nb::arg("mode"), nb::arg("options") = QpOasesOptions());
+
+  nb::class_<EiquadprogSolver, QpSolver>(
+      m, "EiquadprogSolver",
+      "eiquadprog (the eiquadprog wheel's library), as TSID calls it; wbcbench.qp's eiquadprog.")
+      .def(
+          "__init__",
+          [](EiquadprogSolver* self, const std::string& mode, const EiquadprogOptions& options) {
+            new (self) EiquadprogSolver(mode_of(mode), options);
+          },
+          nb::arg("mode"), nb::arg("options") = EiquadprogOptions());
 
   nb::class_<NativeSolvers>(m, "NativeSolvers",
                             "The level solves of a hierarchy tick that stay in C++.")
