@@ -440,24 +440,12 @@ class NativeTimer(SolveTimes):
 class NativeController(Controller):
     """A controller that also has a native tick (``impl: native``).
 
-    The native half is written here once: the tick is made from the started tasks
-    (:meth:`make_native`), a step runs the timed region (:meth:`native_region`) and reads the
-    output after it (:meth:`native_output`: τ, q̈, the wrench, the task terms, the diagnostics,
-    the QPs to keep, the stage times). The QPs' solutions reach the solution check through
-    :class:`QpCall` and :class:`LevelSolve` at the timer's finish.
-
-    A controller declares what is its own:
-
-    * ``tick_type``: the tick's class in the module (e.g. ``"QpWbcTick"``);
-    * :meth:`configure_tick`: its settings, handed to the tick;
-    * :meth:`qp_calls`: the QPs of a tick that hands them to Python one at a time, or
-      :meth:`level_solve`: the callback of a tick that runs a whole hierarchy;
-    * where the defaults do not fit: :meth:`tick_tasks`, :meth:`tick_args`, :meth:`on_start`,
-      :meth:`native_region`, :meth:`native_terms`, :meth:`native_diagnostics`,
-      :meth:`native_problems`, :meth:`native_output`.
-
-    Its Python step stays its own :meth:`step`, which hands over to :meth:`native_step` when
-    the instance runs native.
+    Written here once: the tick made from the started tasks (:meth:`make_native`), the timed
+    region (:meth:`native_region`), the output read after it (:meth:`native_output`), and the
+    QPs' hand-off to the solution check (through :class:`QpCall` and :class:`LevelSolve`). A
+    controller declares its ``tick_type``, its settings (:meth:`configure_tick`) and its QPs
+    (:meth:`qp_calls`) or hierarchy (:meth:`level_solve`); the other hooks are for what differs.
+    Its :meth:`step` stays the Python reference and hands over to :meth:`native_step`.
     """
 
     has_native = True

@@ -437,13 +437,18 @@ class RcLqp(NativeController):
         timings["lqp1"] = tick.lqp1_time
         timings["lqp2"] = tick.lqp2_time
         timings["fallback"] = tick.fallback_time
+        self.part_stages(timings)
+        self.last_output = out
+        return out
+
+    def part_stages(self, timings: dict[str, float]) -> None:
+        """``solve.lqp1``, ``solve.lqp2`` and ``solve.fallback``: the sums of each part's level
+        solves (with ``coupling_priority``, the re-solve's key on every tick)."""
         if self.config.coupling_priority:
             timings.setdefault("solve.lqp1.coupling", 0.0)
         for part in ("lqp1", "lqp2", "fallback"):
             keys = [key for key in timings if key.startswith(f"solve.{part}.")]
             timings[f"solve.{part}"] = sum(timings[key] for key in keys)
-        self.last_output = out
-        return out
 
     # -- task rows ------------------------------------------------------------------------------
 
@@ -949,11 +954,7 @@ class RcLqp(NativeController):
         timings = timer.finish()
         timings["reduced"] = red.time
         timings.update(times)
-        if cfg.coupling_priority:
-            timings.setdefault("solve.lqp1.coupling", 0.0)
-        for part in ("lqp1", "lqp2", "fallback"):
-            keys = [key for key in timings if key.startswith(f"solve.{part}.")]
-            timings[f"solve.{part}"] = sum(timings[key] for key in keys)
+        self.part_stages(timings)
         self.last_output = ControlOutput(
             tau=tau,
             qdd=qdd,
