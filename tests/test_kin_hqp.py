@@ -51,13 +51,16 @@ Array = np.ndarray
 
 needs_native = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
 
+#: the controller whose impls test_native_impl_equals_the_python_reference compares
+CONTROLLER = KinHqp.name
+
 
 def controller_for(robot: Robot, scenario: str, **overrides: Any) -> KinHqp:
     """kin_hqp built as the kinematic runner builds it, with settings overridden."""
     loaded = load_scenario(scenario)
     spec = loaded.spec
     ctx = scenario_context(loaded, robot)
-    cfg = {**controller_settings(loaded, "kin_hqp"), **overrides}
+    cfg = {**controller_settings(loaded, CONTROLLER), **overrides}
     ctrl = KinHqp(ctx, KinHqpConfig.model_validate(cfg))
     ctrl.use_environment(scenario_obstacles(loaded))
     q0, v0 = robot.keyframe(spec.initial.keyframe)

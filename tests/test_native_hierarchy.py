@@ -69,7 +69,7 @@ STRATEGIES = ("cascade", "nullspace", "weighted")
 
 def native_hierarchy(hard: Any, levels: list[Any], finals: list[Any]) -> tuple[Any, list[Any]]:
     """The Python hierarchy's data as the native engine takes them."""
-    core = native.core()
+    core = _native.core()
     h = core.HardConstraints()
     h.A, h.b, h.C, h.l, h.u = hard.A, hard.b, hard.C, hard.l, hard.u
     if hard.lb is not None:
@@ -90,7 +90,7 @@ def native_hierarchy(hard: Any, levels: list[Any], finals: list[Any]) -> tuple[A
 def test_engine_equals_python(strategy: str, shortcuts: str, solver: str) -> None:
     merge = shortcuts in ("merge", "both")
     slack_free = shortcuts in ("slack_free", "both")
-    core = native.core()
+    core = _native.core()
     for seed in range(6):
         for active in (False, True):
             hard, levels, finals = random_hierarchy(seed, active=active)
@@ -123,7 +123,7 @@ def test_engine_equals_python(strategy: str, shortcuts: str, solver: str) -> Non
 
 
 def test_engine_failure_names_the_level() -> None:
-    core = native.core()
+    core = _native.core()
     hard, levels, finals = random_hierarchy(0)
     engine = core.Hierarchy(0)
     calls: list[tuple[int, int, str]] = []
@@ -157,7 +157,7 @@ def breaking_handles(strategy: str) -> list[Any]:
 
 @pytest.mark.parametrize("strategy", STRATEGIES)
 def test_engine_refuses_an_answer_past_a_hard_bound(strategy: str) -> None:
-    core = native.core()
+    core = _native.core()
     hard, levels, finals = random_hierarchy(0)
     python = solve_hierarchy(hard, levels, finals, strategy, breaking_handles(strategy), prox=1e-8)
     engine = core.Hierarchy(0)

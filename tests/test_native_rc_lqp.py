@@ -54,6 +54,8 @@ from .test_native_hierarchy import ACTIVE_SET, base_residual, slacks
 
 pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
 
+#: the controller whose impls these tests compare
+CONTROLLER = "rc_lqp"
 #: case → (scenario, overrides)
 CASES: dict[str, tuple[str, tuple[str, ...]]] = {
     "double": ("ahn_double_support", ()),
@@ -109,7 +111,7 @@ def controllers(case: str, solver: str, config: dict[str, Any]) -> dict[str, Any
         ("spread", "python", {"strategy": other}),
     ):
         ctx = scenario_context(loaded, robot, solver=solver, tier="high")
-        out[key] = make_controller("rc_lqp", ctx, {**config, **extra, "impl": impl})
+        out[key] = make_controller(CONTROLLER, ctx, {**config, **extra, "impl": impl})
     return out
 
 

@@ -69,3 +69,8 @@ class SolverError(WbcBenchError):
 
 class ControllerError(WbcBenchError):
     """A controller cannot produce a command (e.g. its QP failed and no fallback applies)."""
+
+
+class NativeModuleError(WbcBenchError):
+    """``impl: native`` was asked for where the native module is not built (no C++ compiler at
+    install time, or a broken build); raised by :func:`wbcbench._native.core` only."""

@@ -11,6 +11,8 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from wbcbench.errors import NativeModuleError
+
 if TYPE_CHECKING:
     from wbcbench.dynamics.chains import ChainSplit
 
@@ -24,6 +26,17 @@ else:
     REASON = ""
 
 BUILT: bool = _core is not None
+
+
+def core() -> Any:
+    """The compiled module, for everything that needs it; where it is not built, the one error
+    that says so (:class:`~wbcbench.errors.NativeModuleError`), naming why and the way out."""
+    if _core is None:
+        raise NativeModuleError(
+            f"impl: native needs the native module, which is {REASON}; valid choices here: "
+            "python (or install a C++ compiler and rebuild: make native)"
+        )
+    return _core
 
 
 def status() -> dict[str, Any]:
@@ -47,23 +60,20 @@ def robot_dynamics(robot: Any, task_frames: list[str], contact_frames: list[str]
     The Pinocchio model crosses once, as Pinocchio's own serialisation, so the native side
     holds exactly the model the Python side uses.
     """
-    if _core is None:
-        raise RuntimeError(f"the native module is {REASON}")
-    return _core.RobotDynamics(robot.pin_model.saveToString(), task_frames, contact_frames)
+    return core().RobotDynamics(robot.pin_model.saveToString(), task_frames, contact_frames)
 
 
 def split_spec(split: ChainSplit) -> Any:
     """The native :class:`SplitSpec` of a :class:`~wbcbench.dynamics.chains.ChainSplit`: its
     contact frames, plain coordinates and, per chain, velocity indices, root and parent joints
     (the chain split itself is computed in Python, once)."""
-    if _core is None:
-        raise RuntimeError(f"the native module is {REASON}")
-    spec = _core.SplitSpec()
+    module = core()
+    spec = module.SplitSpec()
     spec.contact_frames = list(split.contact_frames)
     spec.plain = split.plain.tolist()
     chains = []
     for chain in split.chains:
-        native = _core.ChainSpec()
+        native = module.ChainSpec()
         native.idx = chain.idx.tolist()
         native.root_joints = list(chain.root_joints)
         native.parent_joint = chain.parent_joint
@@ -85,4 +95,4 @@ def reduced_dynamics(
     """
     if dynamics is None:
         dynamics = robot_dynamics(robot, task_frames or [], list(split.contact_frames))
-    return _core.ReducedDynamics(dynamics, split_spec(split))
+    return core().ReducedDynamics(dynamics, split_spec(split))

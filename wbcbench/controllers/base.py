@@ -229,11 +229,8 @@ class Controller(ABC):
         self.config = config if config is not None else self.Config()
         #: ``native`` or ``python``: which implementation this instance runs
         self.impl = self.impl_for(self.config)
-        if self.impl == "native" and not _native.BUILT:
-            raise ControllerError(
-                f"{self.name}: impl: native needs the native module, which is {_native.REASON}; "
-                "valid choices here: python"
-            )
+        if self.impl == "native":
+            _native.core()  # fails here, with why, where the module is not built
 
     def start(self, state: RobotState) -> None:
         """Called once with the initial state: fixes the tasks' initial values."""

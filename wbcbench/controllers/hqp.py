@@ -33,14 +33,21 @@ import numpy as np
 import scipy.linalg
 from pydantic import Field
 
-from wbcbench.controllers import native
+from wbcbench import _native
 from wbcbench.controllers.base import (
-    Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
     NativeConfig,
     StageTimer,
+)
+from wbcbench.controllers.native import (
+    LevelSolve,
+    NativeController,
+    NativeTimer,
+    accept_tol,
+    priority_groups,
+    set_limits,
 )
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
@@ -79,14 +86,14 @@ class HqpConfig(NativeConfig):
     )
 
 
-class Hqp(Controller):
+class Hqp(NativeController):
     """Conventional cascade HQP over (q̈, Γ, f)."""
 
     name = "hqp"
     summary = "conventional HQP: one QP per priority over (q̈, Γ, f); cascade/nullspace/rqr"
     Config = HqpConfig
-    has_native = True
     config: HqpConfig
+    tick_type = "HqpTick"
 
     @classmethod
     def impl_for(cls, config: ControllerConfig) -> str:
@@ -121,33 +128,24 @@ class Hqp(Controller):
         self.solvers = (
             [] if self.config.strategy == "rqr" else [ctx.new_solver() for _ in range(n_qp)]
         )
-        self.native_tick: Any = None  # made at start() once the tasks are started
-        self.native_solve: native.LevelSolve | None = None
 
-    def start(self, state: RobotState) -> None:
-        super().start(state)
-        if self.impl == "native":
-            self.make_native()
-
-    def make_native(self) -> None:
-        """The native tick, from the started tasks."""
+    def configure_tick(self, tick: Any) -> None:
         cfg = self.config
-        tasks = self.ctx.tasks
-        core = native.core()
-        tick = native.new_tick("HqpTick", self.ctx.robot, tasks, list(self.frames))
+        core = _native.core()
         s = core.HqpSettings()
         s.strategy = getattr(core.Strategy, cfg.strategy)
         s.finals = [getattr(core.HqpFinal, name) for name in cfg.finals]
         s.wrench_weights = np.asarray(cfg.wrench_weights, dtype=float)
         s.prox = cfg.prox
-        s.accept_tol = native.accept_tol(self.ctx)
+        s.accept_tol = accept_tol(self.ctx)
         s.level_weights = list(cfg.level_weights)
-        s.priorities, s.groups = native.priority_groups(tasks)
-        s.force_level = [task.level == "force" for task in tasks]
-        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+        s.priorities, s.groups = priority_groups(self.ctx.tasks)
+        s.force_level = [task.level == "force" for task in self.ctx.tasks]
+        set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
-        self.native_tick = tick
-        self.native_solve = native.LevelSolve(
+
+    def level_solve(self, tick: Any) -> LevelSolve:
+        return LevelSolve(
             lambda pool, i: tick.slot(i),
             [self.solvers],
             self.ctx.keep_problems,
@@ -155,27 +153,16 @@ class Hqp(Controller):
         )
 
     def native_region(
-        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: NativeTimer
     ) -> str | None:
-        """The timed region of a native step: the whole hierarchy, its QPs through the lean
-        path. Returns None, or the message of a failed tick."""
-        assert self.native_solve is not None
-        message = native.hierarchy_region(self.native_tick, self.native_solve, q, v, t, timer)
+        message = super().native_region(q, v, t, timer)
         return None if message is None else f"hqp: {message}"
 
-    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same step on the native tick (see :meth:`native_region`)."""
-        if self.native_tick is None:
-            self.make_native()
-        assert self.native_solve is not None
-        timer = native.NativeTimer()
-        message = self.native_region(state.q, state.v, t, timer)
-        timer.stop()
-        tick = self.native_tick
-        terms = native.task_terms(self.ctx.tasks, tick.tasks)
-        result = tick.result
-        diagnostics = self._diagnostics(result.levels[: len(self.priorities)], result.retries)
-        return native.output(tick, timer, terms, self.native_solve.kept, message, diagnostics)
+    def native_diagnostics(
+        self, state: RobotState, terms: list[TaskTerm], ok: bool
+    ) -> dict[str, float]:
+        result = self.native_tick.result
+        return self._diagnostics(result.levels[: len(self.priorities)], result.retries)
 
     @staticmethod
     def _diagnostics(levels: list[Any], retries: int) -> dict[str, float]:
@@ -262,7 +249,7 @@ class Hqp(Controller):
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
-            return self._step_native(state, t)
+            return self.native_step(state, t)
         timer = StageTimer(state)
         n, k = state.n, state.k
         terms = self.evaluate_tasks(state, t)

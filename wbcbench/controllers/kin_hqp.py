@@ -32,8 +32,8 @@ the mirror of :meth:`KinHqp.build` and :meth:`KinHqp.solve`): the Pinocchio pass
 references, the gaze, the root map, the collision pairs (``src/tasks/collision.cpp``, the mirror
 of :mod:`wbcbench.tasks.collision`), the levels written in place into the native hierarchy solver
 (:mod:`wbcbench.qp.hls_native`) and q̇. What the tick needs is handed over once, by
-:meth:`KinHqp.make_native` at start; per tick only (q, v, t) cross. :meth:`KinHqp.build` stays the
-reference formulation, and :meth:`KinHqp.solve` solves its levels with either impl.
+:meth:`KinHqp.configure_tick` at start; per tick only (q, v, t) cross. :meth:`KinHqp.build` stays
+the reference formulation, and :meth:`KinHqp.solve` solves its levels with either impl.
 
 A velocity-level controller computes no torque, acceleration or wrench: ``ControlOutput.tau``,
 ``qdd`` and ``wrench`` are zero-size arrays and ``qd`` holds the command.
@@ -51,15 +51,15 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.spatial import ConvexHull
 
-from wbcbench.controllers import native
+from wbcbench import _native
 from wbcbench.controllers.base import (
-    Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
     NativeImplConfig,
     StageTimer,
 )
+from wbcbench.controllers.native import NativeController, NativeTimer, priority_groups
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import SolverError, UnknownNameError, WbcBenchError
 from wbcbench.qp.hls import HlsResult, Level
@@ -296,13 +296,13 @@ def support_polygon(state: RobotState, contacts: list) -> tuple[Array, Array]:
     return eq[:, :2].copy(), -eq[:, 2].copy()
 
 
-class KinHqp(Controller):
+class KinHqp(NativeController):
     """Prioritized inverse kinematics: regularised reduced QR with active sets."""
 
     name = "kin_hqp"
     summary = "prioritized kinematic control (RQR-HQP): velocity-level HLS, inequalities"
     kind = "velocity"
-    has_native = True
+    tick_type = "KinHqpTick"
     #: the hierarchy is solved by wbcbench.qp.hls, not by a QP backend
     own_solver = "hls"
     Config = KinHqpConfig
@@ -350,7 +350,6 @@ class KinHqp(Controller):
         self.algorithm = "reduced_qr" if cfg.hierarchy == "rqr" else cfg.hierarchy
         self._solve = get_algorithm(self.algorithm)
         self._native: NativeHls | None = NativeHls() if self.impl == "native" else None
-        self.native_tick: Any = None  # made at start(), see make_native()
 
     # -- environment and start --------------------------------------------------------------
 
@@ -361,24 +360,21 @@ class KinHqp(Controller):
         )
         self.native_tick = None  # the next start() hands the new pairs over
 
-    def start(self, state: RobotState) -> None:
-        super().start(state)
+    def on_start(self, state: RobotState) -> None:
+        """The gaze's start, the CoM to hold and the support polygon."""
         if self.gaze is not None:
             self.gaze.start(state)
         self._com0 = state.com[:2].copy()
         if self.ctx.contacts:
             # The feet are held, so their support polygon is fixed for the run.
             self._polygon = support_polygon(state, self.ctx.contacts)
-        if self.impl == "native":
-            self.make_native()
 
-    def make_native(self) -> None:
-        """The native tick, once the tasks, the CoM hold and the support polygon are fixed:
-        the settings, the collision pairs, the gaze and the task levels, handed over once."""
+    def configure_tick(self, tick: Any) -> None:
+        """Once the tasks, the CoM hold and the support polygon are fixed: the settings, the
+        collision pairs, the gaze and the task levels."""
         cfg, robot = self.config, self.ctx.robot
-        core = native.core()
+        core = _native.core()
         tasks = list(self.ctx.tasks)
-        tick = native.new_tick("KinHqpTick", robot, tasks, list(self.frames))
         s = core.KinHqpSettings()
         s.algorithm = getattr(core.HlsAlgorithm, self.algorithm)
         s.inequalities = cfg.inequalities
@@ -409,7 +405,7 @@ class KinHqp(Controller):
             s.gaze = gaze
             frames.append(robot.frame_id(self.gaze.frame))
             terms.append(self.gaze)
-        _, groups = native.priority_groups(terms)
+        _, groups = priority_groups(terms)
         s.task_levels = groups
         s.task_level_names = ["+".join(terms[i].name for i in group) for group in groups]
         capsules = []
@@ -424,7 +420,50 @@ class KinHqp(Controller):
             boxes.append(spec)
         self_pairs, obstacle_pairs = self.collision.index_pairs
         tick.configure(s, frames, capsules, self_pairs, boxes, obstacle_pairs)
-        self.native_tick = tick
+
+    def native_region(
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: NativeTimer
+    ) -> str | None:
+        """The timed region: the whole tick (dynamics, build, solve, q̇)."""
+        tick = self.native_tick
+        return None if tick.run(q, v, t) else f"kin_hqp: {tick.solver.message}"
+
+    def native_terms(self) -> list[TaskTerm]:
+        """The tasks' terms, then the gaze's."""
+        terms = super().native_terms()
+        if self.gaze is not None:
+            tick = self.native_tick
+            error, zeros = tick.gaze_error.copy(), np.zeros(3)
+            J = tick.gaze_jacobian.copy()
+            terms.append(GazeTerm(self.gaze, J, zeros, zeros, error, zeros, tick.gaze_angle))
+        return terms
+
+    def native_output(
+        self, state: RobotState, timer: NativeTimer, message: str | None
+    ) -> ControlOutput:
+        """q̇ and the same diagnostics as :meth:`step`'s; the solve stage is the algorithm,
+        timed inside the module (nothing crosses for it)."""
+        tick = self.native_tick
+        collisions = tick.collisions
+        diag = _counts(tick.n_eq, tick.n_ineq, tick.n_task, collisions.d)
+        terms = self.native_terms()
+        if message is not None:
+            return _failed(state.n, terms, timer.finish(tick), message, diag)
+        res = hls_result(tick.solver, tick.level_names)
+        timer.solve += res.time
+        timer.solve_native += res.time
+        timer.solve_internal += res.time
+        iterations = _level_diagnostics(res, timer, diag)
+        return ControlOutput(
+            tau=np.zeros(0),
+            qdd=np.zeros(0),
+            wrench=np.zeros(0),
+            terms=terms,
+            timings=timer.finish(tick),
+            qd=tick.qd.copy(),
+            iterations=float(iterations),
+            diagnostics=diag,
+        )
 
     # -- formulation ------------------------------------------------------------------------
 
@@ -539,7 +578,7 @@ class KinHqp(Controller):
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
-            return self._step_native(state, t)
+            return self.native_step(state, t)
         timer = StageTimer(state)
         problem = self.build(state, t)
         diag = _counts(problem.n_eq, problem.n_ineq, problem.n_task, problem.collisions.d)
@@ -559,43 +598,6 @@ class KinHqp(Controller):
             terms=problem.terms,
             timings=timer.finish(),
             qd=problem.T @ res.x,
-            iterations=float(iterations),
-            diagnostics=diag,
-        )
-
-    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same step on the native tick: the timed region is the tick (dynamics, build,
-        solve, q̇); the diagnostics and the task terms for the logs are read after it."""
-        if self.native_tick is None:
-            self.make_native()
-        tick = self.native_tick
-        timer = native.NativeTimer()
-        ok = tick.run(state.q, state.v, t)
-        qd = tick.qd.copy() if ok else np.zeros(state.n)
-        timer.stop()
-        collisions = tick.collisions
-        diag = _counts(tick.n_eq, tick.n_ineq, tick.n_task, collisions.d)
-        terms = native.task_terms(self.ctx.tasks, tick.tasks)
-        if self.gaze is not None:
-            error, zeros = tick.gaze_error.copy(), np.zeros(3)
-            J = tick.gaze_jacobian.copy()
-            terms.append(GazeTerm(self.gaze, J, zeros, zeros, error, zeros, tick.gaze_angle))
-        if not ok:
-            message = f"kin_hqp: {tick.solver.message}"
-            return _failed(state.n, terms, timer.finish(tick), message, diag)
-        res = hls_result(tick.solver, tick.level_names)
-        # the solve stage is the algorithm, timed inside the module (nothing crosses for it)
-        timer.solve += res.time
-        timer.solve_native += res.time
-        timer.solve_internal += res.time
-        iterations = _level_diagnostics(res, timer, diag)
-        return ControlOutput(
-            tau=np.zeros(0),
-            qdd=np.zeros(0),
-            wrench=np.zeros(0),
-            terms=terms,
-            timings=timer.finish(tick),
-            qd=qd,
             iterations=float(iterations),
             diagnostics=diag,
         )

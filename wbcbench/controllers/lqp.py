@@ -35,14 +35,21 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from wbcbench.controllers import native
+from wbcbench import _native
 from wbcbench.controllers.base import (
-    Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
     NativeConfig,
     StageTimer,
+)
+from wbcbench.controllers.native import (
+    LevelSolve,
+    NativeController,
+    NativeTimer,
+    accept_tol,
+    priority_groups,
+    set_limits,
 )
 from wbcbench.dynamics.dense import spd_factor
 from wbcbench.dynamics.state import RobotState
@@ -122,14 +129,15 @@ def level_weight(weights: list[float], i: int) -> float:
 
 def lexicographic_settings(cfg: LexicographicConfig, tasks: list[Any]) -> Any:
     """The native settings both LQPs share, from the Python config."""
-    s = native.core().LexicographicSettings()
-    s.strategy = getattr(native.core().Strategy, cfg.strategy)
+    core = _native.core()
+    s = core.LexicographicSettings()
+    s.strategy = getattr(core.Strategy, cfg.strategy)
     s.qdd_limit = cfg.qdd_limit
     s.wrench_regularization = cfg.wrench_regularization
     s.prox = cfg.prox
     s.final_weight = cfg.final_weight
     s.weights = list(cfg.weights)
-    s.priorities, s.groups = native.priority_groups(tasks)
+    s.priorities, s.groups = priority_groups(tasks)
     return s
 
 
@@ -186,7 +194,7 @@ def failed_output(
 # -- the controller ----------------------------------------------------------------------------
 
 
-class Lqp(Controller):
+class Lqp(NativeController):
     """Conventional full-model LQP of RC-LQP Table 1 (the baseline of ``rc_lqp``)."""
 
     name = "lqp"
@@ -196,8 +204,8 @@ class Lqp(Controller):
     )
     Config = LqpConfig
     reference_solvers = ("quadprog",)
-    has_native = True
     config: LqpConfig
+    tick_type = "LqpTick"
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -207,58 +215,38 @@ class Lqp(Controller):
         self.pool = SolverPool(ctx)
         self.last: HierarchyResult | None = None
         self.last_output: ControlOutput | None = None
-        self.native_tick: Any = None  # made at start() once the tasks are started
-        self.native_solve: native.LevelSolve | None = None
 
-    def start(self, state: RobotState) -> None:
-        super().start(state)
-        if self.impl == "native":
-            self.make_native()
-
-    def make_native(self) -> None:
-        """The native tick, from the started tasks."""
-        tasks = self.ctx.tasks
-        tick = native.new_tick("LqpTick", self.ctx.robot, tasks, list(self.frames))
-        s = lexicographic_settings(self.config, tasks)
-        s.accept_tol = native.accept_tol(self.ctx)
-        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+    def configure_tick(self, tick: Any) -> None:
+        s = lexicographic_settings(self.config, self.ctx.tasks)
+        s.accept_tol = accept_tol(self.ctx)
+        set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
-        self.native_tick = tick
-        self.native_solve = native.LevelSolve(
+
+    def level_solve(self, tick: Any) -> LevelSolve:
+        return LevelSolve(
             lambda pool, i: tick.slot(i),
             [self.pool.get(tick.handles)],
             self.ctx.keep_problems,
             self.config.solver_calls,
         )
 
-    def native_region(
-        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
-    ) -> str | None:
-        """The timed region of a native step: the whole hierarchy, its QPs through the lean
-        path. Returns None, or the message of a failed tick."""
-        assert self.native_solve is not None
-        return native.hierarchy_region(self.native_tick, self.native_solve, q, v, t, timer)
+    def native_diagnostics(
+        self, state: RobotState, terms: list[TaskTerm], ok: bool
+    ) -> dict[str, float]:
+        result = self.native_tick.result
+        return {**slack_diagnostics(result), "prox_retries": float(result.retries)}
 
-    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same step on the native tick (see :meth:`native_region`)."""
-        if self.native_tick is None:
-            self.make_native()
-        assert self.native_solve is not None
-        timer = native.NativeTimer()
-        message = self.native_region(state.q, state.v, t, timer)
-        timer.stop()
-        tick = self.native_tick
-        terms = native.task_terms(self.ctx.tasks, tick.tasks)
+    def native_output(
+        self, state: RobotState, timer: NativeTimer, message: str | None
+    ) -> ControlOutput:
+        """A failed tick keeps the last good tick's keys (see :func:`failed_output`)."""
         if message is not None:
-            n, k = state.n, state.k
+            terms = self.native_terms()
+            timings = timer.finish(self.native_tick)
             return failed_output(
-                n, k, self.nc, terms, timer.finish(tick), message, self.last_output
+                state.n, state.k, self.nc, terms, timings, message, self.last_output
             )
-        result = tick.result
-        diagnostics = {**slack_diagnostics(result), "prox_retries": float(result.retries)}
-        self.last_output = native.output(
-            tick, timer, terms, self.native_solve.kept, None, diagnostics
-        )
+        self.last_output = super().native_output(state, timer, message)
         return self.last_output
 
     def hierarchy(
@@ -310,7 +298,7 @@ class Lqp(Controller):
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
-            return self._step_native(state, t)
+            return self.native_step(state, t)
         timer = StageTimer(state)
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc

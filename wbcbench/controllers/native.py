@@ -11,18 +11,29 @@ Stages reported, as the Python path's :class:`~wbcbench.controllers.base.StageTi
 ``solve_setup`` / ``solve_native`` / ``solve_internal`` inside), ``total``, and ``crossing``:
 what is left of ``total``, i.e. the calls between Python and the module and the step's own
 Python lines.
+
+:class:`NativeController` holds all of that once: a controller with a native tick declares only
+what is its own (the tick's type, its settings, its QPs or hierarchy, its diagnostics).
 """
 
 from __future__ import annotations
 
 import time
+from abc import abstractmethod
+from collections.abc import Sequence
 from dataclasses import replace
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from wbcbench import _native
-from wbcbench.controllers.base import ControlOutput, SolveTimes
+from wbcbench.controllers.base import (
+    Controller,
+    ControlOutput,
+    NativeImplConfig,
+    SolveTimes,
+)
+from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.qp import Problem, Solution, SolutionStatus
 from wbcbench.qp.hierarchy import accept_tol_for
@@ -47,16 +58,9 @@ from wbcbench.tasks.trajectories import (
 )
 
 
-def core() -> Any:
-    """The compiled module; an error naming why when it is not built."""
-    if _native._core is None:
-        raise ControllerError(f"impl: native needs the native module, which is {_native.REASON}")
-    return _native._core
-
-
 def native_trajectory(traj: Trajectory) -> Any:
     """The native form of a reference trajectory (the same numbers, handed over once)."""
-    c = core().Trajectory
+    c = _native.core().Trajectory
     if isinstance(traj, Constant):
         return c.constant(np.asarray(traj.value, dtype=float))
     if isinstance(traj, Sinusoid):
@@ -101,8 +105,9 @@ def task_spec(task: Task, frames: list[str]) -> Any:
     if kind is None:
         raise ControllerError(f"task {task.name!r} ({type(task).__name__}) has no native form")
     m = task.dim
-    spec = core().TaskSpec()
-    spec.type = getattr(core().TaskType, kind)
+    module = _native.core()
+    spec = module.TaskSpec()
+    spec.type = getattr(module.TaskType, kind)
     frame = getattr(task, "frame", "")
     spec.frame = frames.index(frame) if frame else -1
     spec.rows = [int(r) for r in task._rows]
@@ -172,19 +177,6 @@ def task_terms(tasks: list[Task], native_tasks: Any) -> list[TaskTerm]:
     return out
 
 
-def new_tick(
-    tick_type: str, robot: Any, tasks: list[Task], contact_frames: list[str], *args: Any
-) -> Any:
-    """A native tick of ``tick_type`` (e.g. ``QpWbcTick``) holding the started ``tasks``, in
-    that order (their rows stacked so); ``args`` go to its constructor after the frames."""
-    frames = task_frames(tasks)
-    model = robot.pin_model.saveToString()
-    tick = getattr(core(), tick_type)(model, frames, contact_frames, *args)
-    for task in tasks:
-        tick.tasks.add(task_spec(task, frames))
-    return tick
-
-
 def set_limits(settings: Any, tau_max: Any, Cw: Any, lw: Any, uw: Any, n_wrench: int) -> None:
     """The torque limits and wrench inequalities every native tick takes."""
     settings.tau_max = np.asarray(tau_max, dtype=float)
@@ -241,20 +233,6 @@ class QpCall:
         return 0.0
 
 
-def single_qp_region(
-    tick: Any, call: QpCall, q: Any, v: Any, t: float, timer: NativeTimer
-) -> str | None:
-    """The timed region of a native tick with one QP: build, solve, finish. Returns None, or
-    the message of a failed tick."""
-    if not tick.build(q, v, t):
-        return NAN_MESSAGE
-    x, sol = call.solve(timer)
-    if x is None:
-        return f"{sol.solver}: {sol.status.value}: {sol.message}"
-    tick.finish(x)
-    return None
-
-
 class LevelSolve:
     """The solve callback of a native hierarchy: the native side assembles a level's QP into
     one of its slots and calls this with ``(pool, handle, slot, reshaped, level)``; the QP goes
@@ -294,7 +272,7 @@ class LevelSolve:
             if getattr(handle, "sink", None) is not None
         }
         if solver_calls == "native":
-            self.natives = core().NativeSolvers()
+            self.natives = _native.core().NativeSolvers()
             # the check needs each C++ solve's QP and answer: copies, their time taken out of
             # the tick's (keep_seconds)
             self.natives.set_keep(keep or bool(self.sinks))
@@ -425,43 +403,6 @@ def priority_groups(tasks: list[Task]) -> tuple[list[int], list[list[int]]]:
     return priorities, groups
 
 
-def hierarchy_region(
-    tick: Any, solve: LevelSolve, q: Any, v: Any, t: float, timer: NativeTimer
-) -> str | None:
-    """The timed region of a native hierarchy tick: the whole tick, its QPs through ``solve``.
-    Returns None, or the message of a failed tick."""
-    solve.start(timer)
-    if solve.run(tick, q, v, t):
-        return None
-    return solve.message(tick.result.failed_level, tick.result.message)
-
-
-def output(
-    tick: Any,
-    timer: NativeTimer,
-    terms: list[TaskTerm],
-    problems: list[Problem],
-    message: str | None,
-    diagnostics: dict[str, float] | None = None,
-) -> ControlOutput:
-    """The step's output from the tick's τ, q̈ and wrench, or a failed one when ``message`` is
-    set (zeros of the same sizes); ``problems`` are the QPs to keep (copies)."""
-    ok = message is None
-    tau, qdd, wrench = tick.tau, tick.qdd, tick.wrench
-    return ControlOutput(
-        tau=tau.copy() if ok else np.zeros_like(tau),
-        qdd=qdd.copy() if ok else np.zeros_like(qdd),
-        wrench=wrench.copy() if ok else np.zeros_like(wrench),
-        terms=terms,
-        timings=timer.finish(tick),
-        ok=ok,
-        message=message or "",
-        iterations=timer.iterations,
-        diagnostics=diagnostics or {},
-        problems=[frozen(p) for p in problems],
-    )
-
-
 class NativeTimer(SolveTimes):
     """Stage times of a native tick (see the module docstring)."""
 
@@ -494,3 +435,149 @@ class NativeTimer(SolveTimes):
         if params is not None:
             out["params"] = params
         return out
+
+
+class NativeController(Controller):
+    """A controller that also has a native tick (``impl: native``).
+
+    Written here once: the tick made from the started tasks (:meth:`make_native`), the timed
+    region (:meth:`native_region`), the output read after it (:meth:`native_output`), and the
+    QPs' hand-off to the solution check (through :class:`QpCall` and :class:`LevelSolve`). A
+    controller declares its ``tick_type``, its settings (:meth:`configure_tick`) and its QPs
+    (:meth:`qp_calls`) or hierarchy (:meth:`level_solve`); the other hooks are for what differs.
+    Its :meth:`step` stays the Python reference and hands over to :meth:`native_step`.
+    """
+
+    has_native = True
+    #: the tick's class in the module, e.g. ``"QpWbcTick"``
+    tick_type: ClassVar[str] = ""
+    config: NativeImplConfig
+    #: the native tick, made by :meth:`make_native` (None until then)
+    native_tick: Any = None
+    #: the QPs the tick hands to Python one at a time (:meth:`qp_calls`)
+    native_calls: Sequence[QpCall] = ()
+    #: the callback of a tick that runs a whole hierarchy (:meth:`level_solve`)
+    native_solve: LevelSolve | None = None
+
+    # -- what a controller declares --------------------------------------------------------------
+
+    @abstractmethod
+    def configure_tick(self, tick: Any) -> None:
+        """Fill the tick's settings from the controller's and hand them over
+        (``tick.configure``)."""
+
+    def tick_tasks(self) -> list[Task]:
+        """The started tasks in the order the tick stacks their rows (the scenario's here)."""
+        return self.ctx.tasks
+
+    def tick_args(self) -> tuple[Any, ...]:
+        """The tick's constructor arguments after the model and the frames (none here)."""
+        return ()
+
+    def qp_calls(self, tick: Any) -> list[QpCall]:
+        """The QPs the tick hands to Python one at a time, each with its solver handle."""
+        return []
+
+    def level_solve(self, tick: Any) -> LevelSolve | None:
+        """The callback through which a tick that runs a whole hierarchy solves its levels."""
+        return None
+
+    def on_start(self, state: RobotState) -> None:
+        """What the controller fixes for the run at the first state, after its tasks are started
+        and before the native tick is made from them (both impls; nothing here)."""
+
+    # -- the start and the step ------------------------------------------------------------------
+
+    def start(self, state: RobotState) -> None:
+        super().start(state)
+        self.on_start(state)
+        if self.impl == "native":
+            self.make_native()
+
+    def make_native(self) -> None:
+        """The native tick from the started tasks (made by start(), or by the first step of a
+        controller whose tasks another one started): the model, the tasks and the settings
+        cross once."""
+        tasks = self.tick_tasks()
+        frames = task_frames(tasks)
+        model = self.ctx.robot.pin_model.saveToString()
+        tick_class = getattr(_native.core(), self.tick_type)
+        tick = tick_class(model, frames, self.ctx.contact_frames, *self.tick_args())
+        for task in tasks:
+            tick.tasks.add(task_spec(task, frames))
+        self.configure_tick(tick)
+        self.native_tick = tick
+        self.native_calls = self.qp_calls(tick)
+        self.native_solve = self.level_solve(tick)
+
+    def native_step(self, state: RobotState, t: float) -> ControlOutput:
+        """:meth:`step` on the native tick: the timed region, then the output read after it."""
+        if self.native_tick is None:
+            self.make_native()
+        timer = NativeTimer()
+        message = self.native_region(state.q, state.v, t, timer)
+        timer.stop()
+        return self.native_output(state, timer, message)
+
+    def native_region(
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: NativeTimer
+    ) -> str | None:
+        """The timed region of a native step; None, or the message of a failed tick. Here: a
+        tick with one QP (build, the QP's solve, finish), or a tick that runs a whole hierarchy,
+        its level QPs through :attr:`native_solve`."""
+        tick = self.native_tick
+        if self.native_solve is not None:
+            self.native_solve.start(timer)
+            if self.native_solve.run(tick, q, v, t):
+                return None
+            return self.native_solve.message(tick.result.failed_level, tick.result.message)
+        (call,) = self.native_calls
+        if not tick.build(q, v, t):
+            return NAN_MESSAGE
+        x, sol = call.solve(timer)
+        if x is None:
+            return f"{sol.solver}: {sol.status.value}: {sol.message}"
+        tick.finish(x)
+        return None
+
+    def native_terms(self) -> list[TaskTerm]:
+        """The last tick's task terms (copies), in the order of the scenario's tasks."""
+        by_task = {
+            id(term.task): term for term in task_terms(self.tick_tasks(), self.native_tick.tasks)
+        }
+        return [by_task[id(task)] for task in self.ctx.tasks]
+
+    def native_diagnostics(
+        self, state: RobotState, terms: list[TaskTerm], ok: bool
+    ) -> dict[str, float]:
+        """The step's diagnostics, read after the timed region (none here)."""
+        return {}
+
+    def native_problems(self) -> list[Problem]:
+        """The QPs of the last tick: the level QPs the hierarchy kept, else the tick's QPs."""
+        if self.native_solve is not None:
+            return self.native_solve.kept
+        return [call.problem for call in self.native_calls]
+
+    def native_output(
+        self, state: RobotState, timer: NativeTimer, message: str | None
+    ) -> ControlOutput:
+        """The step's output from the tick's τ, q̈ and wrench, or a failed one when ``message``
+        is set (zeros of the same sizes), with copies of its QPs when the context keeps them."""
+        tick, ok = self.native_tick, message is None
+        terms = self.native_terms()
+        diagnostics = self.native_diagnostics(state, terms, ok)
+        problems = self.native_problems() if self.ctx.keep_problems else []
+        tau, qdd, wrench = tick.tau, tick.qdd, tick.wrench
+        return ControlOutput(
+            tau=tau.copy() if ok else np.zeros_like(tau),
+            qdd=qdd.copy() if ok else np.zeros_like(qdd),
+            wrench=wrench.copy() if ok else np.zeros_like(wrench),
+            terms=terms,
+            timings=timer.finish(tick),
+            ok=ok,
+            message=message or "",
+            iterations=timer.iterations,
+            diagnostics=diagnostics,
+            problems=[frozen(p) for p in problems],
+        )

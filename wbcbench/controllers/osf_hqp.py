@@ -28,11 +28,12 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from wbcbench.controllers import native
 from wbcbench.controllers.base import ControllerConfig, ControllerContext, ControlOutput, StageTimer
+from wbcbench.controllers.native import NAN_MESSAGE, NativeTimer, QpCall
 from wbcbench.controllers.to_osf import OsfBaseConfig, OsfControllerBase, wrench_selection
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp import Problem
+from wbcbench.tasks.tasks import TaskTerm
 
 
 class OsfHqpConfig(OsfBaseConfig):
@@ -57,7 +58,8 @@ class OsfHqp(OsfControllerBase):
     summary = "HQP on the contact-consistent OSF (OSF-HQP): one small QP per level over (w, F_r)"
     Config = OsfHqpConfig
     config: OsfHqpConfig
-    native_types = ("OsfHqpTick", "OsfHqpSettings")
+    tick_type = "OsfHqpTick"
+    settings_type = "OsfHqpSettings"
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -65,73 +67,63 @@ class OsfHqp(OsfControllerBase):
         self.final_solver = ctx.new_solver()
         Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
         self.WtW = Wc.T @ Wc
-        self.problems: list[Problem] = []  # the native QPs' views, made at start()
-        self.calls: list[native.QpCall] = []
+        #: how many of the native tick's QPs the last tick reached
+        self.reached = 0
 
     def native_settings(self, s: Any) -> None:
         s.regularization = self.config.regularization
         s.carry_tolerance = self.config.carry_tolerance
         s.WtW = np.asarray(self.WtW, dtype=float).reshape(self.nc, self.nc)
 
-    def make_native(self) -> None:
-        super().make_native()
-        tick = self.native_tick
-        names = [f"T{i + 1}" for i in range(len(self.levels))] + ["wrench"]
-        solvers = [*self.solvers, self.final_solver]
+    def qp_calls(self, tick: Any) -> list[QpCall]:
+        """One QP per level, then the wrench QP where there is a distribution space."""
         L = len(self.levels)
-        self.calls = [
-            native.QpCall(
-                tick.qp(i),
-                names[i],
-                solvers[min(i, L)],
-                self.config.solver_calls,
-            )
-            for i in range(tick.n_qps)
-        ]
-        self.problems = [call.problem for call in self.calls]
+        names = [f"T{i + 1}" for i in range(L)] + ["wrench"]
+        solvers = [*self.solvers, self.final_solver]
+        calls = self.config.solver_calls
+        return [QpCall(tick.qp(i), names[i], solvers[min(i, L)], calls) for i in range(tick.n_qps)]
 
     def native_region(
-        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
-    ) -> tuple[str | None, list[Problem]]:
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: NativeTimer
+    ) -> str | None:
         """The timed region of a native step: the level QPs, then the wrench QP. Returns None
-        or the message of a failed tick, and the QPs it solved."""
+        or the message of a failed tick."""
         tick = self.native_tick
         L = len(self.levels)
-        used: list[Problem] = []
+        self.reached = 0
         if not tick.build(q, v, t):
-            return tick.message or native.NAN_MESSAGE, used
-        for i, call in enumerate(self.calls):
+            return tick.message or NAN_MESSAGE
+        for i, call in enumerate(self.native_calls):
             level = f"T{i + 1}" if i < L else "wrench"
-            used.append(call.problem)
+            self.reached = i + 1
             x, sol = call.solve(timer, level)
             if x is None:
                 where = f"level {level}" if i < L else "wrench level"
-                return f"{where}: {sol.solver}: {sol.status.value}: {sol.message}", used
+                return f"{where}: {sol.solver}: {sol.status.value}: {sol.message}"
             if i < L:
                 if not tick.level(i, x):
-                    return native.NAN_MESSAGE, used
+                    return NAN_MESSAGE
             else:
                 tick.finish(x)
-        if len(self.problems) == L:
+        if len(self.native_calls) == L:
             tick.finish(np.zeros(0))
-        return None, used
+        return None
 
-    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same cascade on the native tick (see :meth:`native_region`)."""
-        if self.native_tick is None:
-            self.make_native()
-        timer = native.NativeTimer()
-        message, used = self.native_region(state.q, state.v, t, timer)
-        timer.stop()
+    def native_problems(self) -> list[Problem]:
+        """The QPs the last tick reached (a failed level ends the cascade)."""
+        return [call.problem for call in self.native_calls[: self.reached]]
+
+    def native_diagnostics(
+        self, state: RobotState, terms: list[TaskTerm], ok: bool
+    ) -> dict[str, float]:
+        """Each level's slack norm ``slack.T<i>`` = ‖w_i‖."""
         tick = self.native_tick
-        diagnostics = {}
-        if message is None:
-            diagnostics = {f"slack.T{i + 1}": float(w) for i, w in enumerate(tick.slack_norms)}
-        return self.native_output(state, timer, used, message, diagnostics)
+        own = {f"slack.T{i + 1}": float(w) for i, w in enumerate(tick.slack_norms)} if ok else {}
+        return self.osf_diagnostics(state, terms, ok, own)
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
-            return self._step_native(state, t)
+            return self.native_step(state, t)
         timer = StageTimer(state)
         cfg = self.config
         terms, per_level, refs, read = self.prepare(state, t)

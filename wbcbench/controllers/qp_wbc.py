@@ -22,15 +22,15 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field
 
-from wbcbench.controllers import native
+from wbcbench import _native
 from wbcbench.controllers.base import (
-    Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
     NativeConfig,
     StageTimer,
 )
+from wbcbench.controllers.native import NativeController, QpCall, set_limits
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp import Problem
 from wbcbench.tasks.contacts import stack_wrench_constraints
@@ -79,14 +79,14 @@ def accumulate_tasks(
     return J.T @ Jw, -(Jw.T @ r)
 
 
-class QpWbc(Controller):
+class QpWbc(NativeController):
     """Weighted QP-WBC: one QP, soft priorities through weights."""
 
     name = "qp_wbc"
     summary = "weighted QP-WBC (soft hierarchy), variables (q̈, Γ, f) or (q̈, f)"
     Config = QpWbcConfig
     config: QpWbcConfig
-    has_native = True
+    tick_type = "QpWbcTick"
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -95,38 +95,27 @@ class QpWbc(Controller):
         self.frames = frames
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
         self.nc = 6 * len(frames)
-        self.native_tick: Any = None  # made at start() once the tasks are started
-        self.problem: Problem | None = None
 
-    def start(self, state: RobotState) -> None:
-        super().start(state)
-        if self.impl == "native":
-            self.make_native()
-
-    def make_native(self) -> None:
-        """The native tick, from the started tasks (made by start(), or by the first step of a
-        controller whose tasks another one started)."""
-        tasks = self.ctx.tasks
-        tick = native.new_tick("QpWbcTick", self.ctx.robot, tasks, list(self.frames))
+    def configure_tick(self, tick: Any) -> None:
         cfg = self.config
-        s = native.core().QpWbcSettings()
+        s = _native.core().QpWbcSettings()
         s.eliminated = cfg.variables == "eliminated"
         s.row_weights = np.concatenate(
-            [np.full(task.dim, task_weight_of(task, cfg.weights)) for task in tasks]
+            [np.full(task.dim, task_weight_of(task, cfg.weights)) for task in self.ctx.tasks]
             or [np.zeros(0)]
         )
         s.acceleration_weight = cfg.acceleration_weight
         s.torque_weight = cfg.torque_weight
         s.wrench_weight = cfg.wrench_weight
-        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+        set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
-        self.native_tick = tick
-        self.call = native.QpCall(tick.qp, "qp_wbc", self.solver, cfg.solver_calls)
-        self.problem = self.call.problem
+
+    def qp_calls(self, tick: Any) -> list[QpCall]:
+        return [QpCall(tick.qp, "qp_wbc", self.solver, self.config.solver_calls)]
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
-            return self._step_native(state, t)
+            return self.native_step(state, t)
         timer = StageTimer(state)
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc
@@ -219,24 +208,3 @@ class QpWbc(Controller):
             iterations=timer.iterations,
             problems=[problem] if self.ctx.keep_problems else [],
         )
-
-    def native_region(
-        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
-    ) -> str | None:
-        """The timed region of a native step: build, solve through the lean path, finish.
-        Returns None, or the message of a failed tick."""
-        assert self.problem is not None
-        return native.single_qp_region(self.native_tick, self.call, q, v, t, timer)
-
-    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same step on the native tick (see :meth:`native_region`)."""
-        if self.native_tick is None:
-            self.make_native()
-        timer = native.NativeTimer()
-        message = self.native_region(state.q, state.v, t, timer)
-        timer.stop()
-        tick, problem = self.native_tick, self.problem
-        assert problem is not None
-        terms = native.task_terms(self.ctx.tasks, tick.tasks)
-        keep = [problem] if self.ctx.keep_problems else []
-        return native.output(tick, timer, terms, keep, message)

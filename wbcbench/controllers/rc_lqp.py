@@ -120,9 +120,7 @@ import pinocchio as pin
 from pydantic import Field
 
 from wbcbench import _native
-from wbcbench.controllers import native
 from wbcbench.controllers.base import (
-    Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
@@ -140,6 +138,13 @@ from wbcbench.controllers.lqp import (
     lexicographic_settings,
     slack_diagnostics,
     task_levels,
+)
+from wbcbench.controllers.native import (
+    LevelSolve,
+    NativeController,
+    NativeTimer,
+    accept_tol,
+    set_limits,
 )
 from wbcbench.dynamics.chains import CENTROID_DIM, split_chains
 from wbcbench.dynamics.dense import spd_factor, tri_solve
@@ -290,7 +295,7 @@ class _RowSplit:
     chain_priority: int
 
 
-class RcLqp(Controller):
+class RcLqp(NativeController):
     """Reduced-centroidal LQP: LQP 1 on the reduced model, LQP 2 on the unconstrained chains."""
 
     name = "rc_lqp"
@@ -300,8 +305,8 @@ class RcLqp(Controller):
     )
     Config = RcLqpConfig
     reference_solvers = ("quadprog",)
-    has_native = True
     config: RcLqpConfig
+    tick_type = "RcLqpTick"
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -333,8 +338,6 @@ class RcLqp(Controller):
             self.pool2r,
             self.full.pool,
         ]
-        self.native_tick: Any = None  # made at start() once the tasks are started
-        self.native_solve: native.LevelSolve | None = None
         self._rows: _RowSplit | None = None
         self.last: tuple[HierarchyResult, HierarchyResult | None] | None = None
         self.last_reduced: ReducedModel | None = None
@@ -345,22 +348,19 @@ class RcLqp(Controller):
 
     # -- the native tick ------------------------------------------------------------------------
 
-    def start(self, state: RobotState) -> None:
-        super().start(state)
+    def on_start(self, state: RobotState) -> None:
+        """The row split, decided at the first state."""
         self._rows = self.row_split(state)
-        if self.impl == "native":
-            self.make_native()
 
-    def make_native(self) -> None:
-        """The native tick, from the started tasks and the chain split."""
+    def tick_args(self) -> tuple[Any, ...]:
+        return (_native.split_spec(self.split),)
+
+    def configure_tick(self, tick: Any) -> None:
         cfg = self.config
-        tasks = self.ctx.tasks
-        core = native.core()
-        split = _native.split_spec(self.split)
-        tick = native.new_tick("RcLqpTick", self.ctx.robot, tasks, list(self.frames), split)
-        s = lexicographic_settings(cfg, tasks)
-        s.accept_tol = native.accept_tol(self.ctx)
-        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+        core = _native.core()
+        s = lexicographic_settings(cfg, self.ctx.tasks)
+        s.accept_tol = accept_tol(self.ctx)
+        set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         rc = core.RcLqpSettings()
         rc.assembly = getattr(core.Assembly, cfg.assembly)
         rc.coupling_priority = cfg.coupling_priority
@@ -372,15 +372,14 @@ class RcLqp(Controller):
         rc.infeasible_coupling = getattr(core.InfeasibleCoupling, cfg.infeasible_coupling)
         tick.configure(s, rc)
         assert self._rows is not None
-        tick.set_row_split([self._rows.lqp1[task.name].tolist() for task in tasks])
-        self.native_tick = tick
+        tick.set_row_split([self._rows.lqp1[task.name].tolist() for task in self.ctx.tasks])
+
+    def level_solve(self, tick: Any) -> LevelSolve:
         handles = [pool.get(tick.handles(i)) for i, pool in enumerate(self.pools)]
-        self.native_solve = native.LevelSolve(
-            tick.slot, handles, self.ctx.keep_problems, cfg.solver_calls
-        )
+        return LevelSolve(tick.slot, handles, self.ctx.keep_problems, self.config.solver_calls)
 
     def native_region(
-        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
+        self, q: np.ndarray, v: np.ndarray, t: float, timer: NativeTimer
     ) -> str | None:
         """The timed region of a native step: both LQPs and every re-solve, their QPs through
         the lean path. Returns None, or the message of a failed tick."""
@@ -395,23 +394,11 @@ class RcLqp(Controller):
             )
         return str(tick.message)
 
-    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same step on the native tick (see :meth:`native_region`), with the same
-        diagnostics and timings as :meth:`step`."""
-        if self.native_tick is None:
-            self.make_native()
-        assert self.native_solve is not None
-        cfg = self.config
-        timer = native.NativeTimer()
-        message = self.native_region(state.q, state.v, t, timer)
-        timer.stop()
-        tick = self.native_tick
-        terms = native.task_terms(self.ctx.tasks, tick.tasks)
-        self.last = None  # (the LQPs' results are the native tick's)
-        if message is not None:
-            n, k = state.n, state.k
-            timings = timer.finish(tick)
-            return failed_output(n, k, self.nc, terms, timings, message, self.last_output)
+    def native_diagnostics(
+        self, state: RobotState, terms: list[TaskTerm], ok: bool
+    ) -> dict[str, float]:
+        """The same diagnostics as :meth:`step`'s, read from the tick."""
+        cfg, tick = self.config, self.native_tick
         diag: dict[str, float] = {}
         if cfg.assembly == "paper" or cfg.diagnostics:
             diag["assembly_diff"] = float(tick.assembly_diff)
@@ -429,19 +416,39 @@ class RcLqp(Controller):
             diag["coupling_violation"] = float(tick.coupling_violation)
             for key in ("w.lqp1.coupling", "v.lqp1.coupling", "w.lqp2.limits", "v.lqp2.limits"):
                 diag.setdefault(key, float("nan"))
-        out = native.output(tick, timer, terms, self.native_solve.kept, None, diag)
+        return diag
+
+    def native_output(
+        self, state: RobotState, timer: NativeTimer, message: str | None
+    ) -> ControlOutput:
+        """The same output as :meth:`step`'s: a failed tick keeps the last good tick's keys,
+        and the LQPs' stages are timed natively."""
+        tick = self.native_tick
+        self.last = None  # (the LQPs' results are the native tick's)
+        if message is not None:
+            terms = self.native_terms()
+            timings = timer.finish(tick)
+            return failed_output(
+                state.n, state.k, self.nc, terms, timings, message, self.last_output
+            )
+        out = super().native_output(state, timer, message)
         timings = out.timings
         timings["reduced"] = tick.reduced_time
         timings["lqp1"] = tick.lqp1_time
         timings["lqp2"] = tick.lqp2_time
         timings["fallback"] = tick.fallback_time
-        if cfg.coupling_priority:
+        self.part_stages(timings)
+        self.last_output = out
+        return out
+
+    def part_stages(self, timings: dict[str, float]) -> None:
+        """``solve.lqp1``, ``solve.lqp2`` and ``solve.fallback``: the sums of each part's level
+        solves (with ``coupling_priority``, the re-solve's key on every tick)."""
+        if self.config.coupling_priority:
             timings.setdefault("solve.lqp1.coupling", 0.0)
         for part in ("lqp1", "lqp2", "fallback"):
             keys = [key for key in timings if key.startswith(f"solve.{part}.")]
             timings[f"solve.{part}"] = sum(timings[key] for key in keys)
-        self.last_output = out
-        return out
 
     # -- task rows ------------------------------------------------------------------------------
 
@@ -860,7 +867,7 @@ class RcLqp(Controller):
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
-            return self._step_native(state, t)
+            return self.native_step(state, t)
         timer = StageTimer(state)
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc
@@ -947,11 +954,7 @@ class RcLqp(Controller):
         timings = timer.finish()
         timings["reduced"] = red.time
         timings.update(times)
-        if cfg.coupling_priority:
-            timings.setdefault("solve.lqp1.coupling", 0.0)
-        for part in ("lqp1", "lqp2", "fallback"):
-            keys = [key for key in timings if key.startswith(f"solve.{part}.")]
-            timings[f"solve.{part}"] = sum(timings[key] for key in keys)
+        self.part_stages(timings)
         self.last_output = ControlOutput(
             tau=tau,
             qdd=qdd,

@@ -30,15 +30,15 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 from pydantic import Field, field_validator
 
-from wbcbench.controllers import native
+from wbcbench import _native
 from wbcbench.controllers.base import (
-    Controller,
     ControllerConfig,
     ControllerContext,
     ControlOutput,
     NativeConfig,
     StageTimer,
 )
+from wbcbench.controllers.native import NativeController, QpCall, set_limits
 from wbcbench.controllers.params import ParameterServer, ParamsRead, parse_params_mode
 from wbcbench.controllers.qp_wbc import task_weight, task_weight_of
 from wbcbench.dynamics.state import RobotState
@@ -47,7 +47,7 @@ from wbcbench.metrics.consistency import dc_error, hierarchy_leak
 from wbcbench.qp import Problem
 from wbcbench.tasks.contacts import stack_wrench_constraints
 from wbcbench.tasks.osf import OsfModel, OsfParams, group_levels, level_kinds
-from wbcbench.tasks.tasks import TaskTerm
+from wbcbench.tasks.tasks import Task, TaskTerm
 
 
 class OsfBaseConfig(NativeConfig):
@@ -91,15 +91,14 @@ class OsfBaseConfig(NativeConfig):
         return v
 
 
-class OsfControllerBase(Controller):
+class OsfControllerBase(NativeController):
     """Shared plumbing: levels, the parameter server, references, limits, diagnostics, and the
     native tick's set-up (``impl: native``)."""
 
     config: OsfBaseConfig
     affine: bool = False
-    has_native = True
-    #: the native tick's and its settings' type names in the module
-    native_types: ClassVar[tuple[str, str]] = ("", "")
+    #: the native settings' type name in the module
+    settings_type: ClassVar[str] = ""
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -131,28 +130,21 @@ class OsfControllerBase(Controller):
             for tasks in self.levels
         ]
         self.tick = 0
-        #: the tasks in level order (the native tick stacks them so), and the native tick
+        #: the tasks in level order (the native tick stacks them so)
         self.level_tasks = [task for tasks in self.levels for task in tasks]
-        self.native_tick: Any = None
 
     # -- the native tick ----------------------------------------------------------------------
 
     def native_settings(self, s: Any) -> None:
         """Set the subclass's own fields of its native settings ``s`` (the shared ones are set
-        by :meth:`make_native`)."""
+        by :meth:`configure_tick`)."""
 
-    def start(self, state: RobotState) -> None:
-        super().start(state)
-        if self.impl == "native":
-            self.make_native()
+    def tick_tasks(self) -> list[Task]:
+        return self.level_tasks
 
-    def make_native(self) -> None:
-        """The native tick, from the started tasks (made by start(), or by the first step of a
-        controller whose tasks another one started)."""
+    def configure_tick(self, tick: Any) -> None:
         cfg = self.config
-        tick_type, settings_type = self.native_types
-        tick = native.new_tick(tick_type, self.ctx.robot, self.level_tasks, list(self.frames))
-        s = getattr(native.core(), settings_type)()
+        s = getattr(_native.core(), self.settings_type)()
         self.native_settings(s)
         s.level_dims = [sum(t.dim for t in tasks) for tasks in self.levels]
         s.force_level = [kind == "force" for kind in self.kinds]
@@ -161,37 +153,22 @@ class OsfControllerBase(Controller):
         s.rcond = cfg.rcond
         s.period = self.server.mode.period
         s.asynchronous = self.server.mode.kind == "async"
-        native.set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+        set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         s.acc_bound = np.concatenate(self.acc_bound or [np.zeros(0)])
         tick.configure(s)
-        self.native_tick = tick
 
-    def native_terms(self) -> list[TaskTerm]:
-        """The native tick's task terms, in the order of the scenario's tasks."""
-        by_task = {
-            id(term.task): term
-            for term in native.task_terms(self.level_tasks, self.native_tick.tasks)
-        }
-        return [by_task[id(task)] for task in self.ctx.tasks]
-
-    def native_output(
-        self,
-        state: RobotState,
-        timer: native.NativeTimer,
-        problems: list[Problem],
-        message: str | None,
-        diagnostics: dict[str, float],
-    ) -> ControlOutput:
-        """The output of a native tick (``message`` set: a failed one); diagnostics are computed
-        after the timed region."""
+    def osf_diagnostics(
+        self, state: RobotState, terms: list[TaskTerm], ok: bool, own: dict[str, float]
+    ) -> dict[str, float]:
+        """A native tick's diagnostics: the parameters' staleness and time, the subclass's
+        ``own``, and (``consistency``, on a tick that succeeded) the hierarchy-leak metrics."""
         tick = self.native_tick
-        terms = self.native_terms()
         diagnostics = {
             "params_staleness": float(tick.staleness),
             "params_compute_time": tick.params_compute_time,
-            **diagnostics,
+            **own,
         }
-        if message is None and self.config.consistency:
+        if ok and self.config.consistency:
             by_task = {id(term.task): term for term in terms}
             per_level = [[by_task[id(task)] for task in tasks] for tasks in self.levels]
             jac = [
@@ -207,8 +184,7 @@ class OsfControllerBase(Controller):
                     state, params, per_level, partial, extra, tick.wrench.copy()
                 )
             )
-        keep = problems if self.ctx.keep_problems else []
-        return native.output(tick, timer, terms, keep, message, diagnostics)
+        return diagnostics
 
     def close(self) -> None:
         """Stop the parameter worker (``params: async``): the process, or the native thread."""
@@ -370,12 +346,12 @@ class ToOsf(OsfControllerBase):
     Config = ToOsfConfig
     config: ToOsfConfig
     affine = True
-    native_types = ("ToOsfTick", "ToOsfSettings")
+    tick_type = "ToOsfTick"
+    settings_type = "ToOsfSettings"
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
         self.solver = ctx.new_solver()
-        self.problem: Problem | None = None  # the native QP's view, made at start()
         self.Sf = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
 
     def native_settings(self, s: Any) -> None:
@@ -389,45 +365,26 @@ class ToOsf(OsfControllerBase):
         s.regularization = cfg.regularization
         s.Sf = np.asarray(self.Sf, dtype=float).reshape(-1, self.nc)
 
-    def make_native(self) -> None:
-        super().make_native()
-        self.call = native.QpCall(
-            self.native_tick.qp,
-            "to_osf",
-            self.solver,
-            self.config.solver_calls,
-        )
-        self.problem = self.call.problem
+    def qp_calls(self, tick: Any) -> list[QpCall]:
+        return [QpCall(tick.qp, "to_osf", self.solver, self.config.solver_calls)]
 
-    def native_region(
-        self, q: np.ndarray, v: np.ndarray, t: float, timer: native.NativeTimer
-    ) -> str | None:
-        """The timed region of a native step: build, solve through the lean path, finish.
-        Returns None, or the message of a failed tick."""
-        assert self.problem is not None
-        return native.single_qp_region(self.native_tick, self.call, q, v, t, timer)
-
-    def _step_native(self, state: RobotState, t: float) -> ControlOutput:
-        """The same step on the native tick (see :meth:`native_region`)."""
-        if self.native_tick is None:
-            self.make_native()
-        timer = native.NativeTimer()
-        message = self.native_region(state.q, state.v, t, timer)
-        timer.stop()
+    def native_diagnostics(
+        self, state: RobotState, terms: list[TaskTerm], ok: bool
+    ) -> dict[str, float]:
+        """How far the QP moved each task's reference: ``amend.<task>`` = ‖ρ_i − ẍ*_i‖."""
+        own: dict[str, float] = {}
         tick = self.native_tick
-        diagnostics: dict[str, float] = {}
-        if message is None:
+        if ok:
             amend = tick.rho - tick.tasks.acc_ref
             tasks = tick.tasks
             for i, task in enumerate(self.level_tasks):
                 rows = slice(tasks.offset(i), tasks.offset(i) + tasks.dim(i))
-                diagnostics[f"amend.{task.name}"] = float(np.linalg.norm(amend[rows]))
-        assert self.problem is not None
-        return self.native_output(state, timer, [self.problem], message, diagnostics)
+                own[f"amend.{task.name}"] = float(np.linalg.norm(amend[rows]))
+        return self.osf_diagnostics(state, terms, ok, own)
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
-            return self._step_native(state, t)
+            return self.native_step(state, t)
         timer = StageTimer(state)
         cfg = self.config
         terms, per_level, refs, read = self.prepare(state, t)

@@ -23,24 +23,16 @@ from typing import Any
 import numpy as np
 
 from wbcbench import _native
-from wbcbench.errors import SolverError, WbcBenchError
+from wbcbench.errors import SolverError
 from wbcbench.qp.hls import Array, HlsResult, Level, LevelStats, level_dampings, start_point
 from wbcbench.qp.hls_baselines import ALGORITHMS, Solver, equality_tasks
-
-
-def _core() -> Any:
-    if _native._core is None:
-        raise WbcBenchError(
-            f"the native hierarchy solver needs the native module, which is {_native.REASON}"
-        )
-    return _native._core
 
 
 class NativeHls:
     """One native hierarchy solver and the stack loaded into it."""
 
     def __init__(self) -> None:
-        core = _core()
+        core = _native.core()
         self.solver = core.HlsSolver()
         self._algorithms = {name: getattr(core.HlsAlgorithm, name) for name in ALGORITHMS}
         self._options = core.HlsOptions()

@@ -7,7 +7,7 @@
 
 namespace wbcbench {
 
-void bind_dynamics(nb::module_& m) {
+WBCBENCH_BIND(dynamics, kCore, m) {
   nb::class_<RobotDynamics>(m, "RobotDynamics",
                             "Per-tick dynamics, the native mirror of RobotState.")
       .def(nb::init<const std::string&, const std::vector<std::string>&,

@@ -1,3 +1,5 @@
+// The hierarchy engine (src/qp/hierarchy.hpp) that the hierarchical controllers' ticks run: its
+// levels, options and result, and the engine itself (for tests against the Python reference).
 #include "qp/hierarchy.hpp"
 
 #include <nanobind/eigen/dense.h>
@@ -6,23 +8,10 @@
 
 #include "bind/bind.hpp"
 #include "bind/level_solver.hpp"
-#include "controllers/hqp.hpp"
-#include "controllers/lqp.hpp"
 
 namespace wbcbench {
 
-namespace {
-
-using ConstVec = Eigen::Ref<const Vector>;
-
-QpBuffers& slot_of(const Hierarchy& h, int i) {
-  if (i < 0 || i >= h.n_slots()) throw nb::index_error("no such QP slot");
-  return const_cast<QpBuffers&>(h.slot(i));
-}
-
-}  // namespace
-
-void bind_hierarchy(nb::module_& m) {
+WBCBENCH_BIND(hierarchy, kCore, m) {
   nb::enum_<Strategy>(m, "Strategy")
       .value("cascade", Strategy::kCascade)
       .value("nullspace", Strategy::kNullspace)
@@ -84,89 +73,6 @@ void bind_hierarchy(nb::module_& m) {
           nb::arg("solve"))
       .def("slot", &slot_of, nb::arg("i"), kView)
       .def_prop_ro("solver_seconds", &Hierarchy::solver_seconds);
-
-  nb::class_<LexicographicSettings>(m, "LexicographicSettings")
-      .def(nb::init<>())
-      .def_rw("strategy", &LexicographicSettings::strategy)
-      .def_rw("qdd_limit", &LexicographicSettings::qdd_limit)
-      .def_rw("wrench_regularization", &LexicographicSettings::wrench_regularization)
-      .def_rw("prox", &LexicographicSettings::prox)
-      .def_rw("accept_tol", &LexicographicSettings::accept_tol)
-      .def_rw("final_weight", &LexicographicSettings::final_weight)
-      .def_rw("weights", &LexicographicSettings::weights)
-      .def_rw("groups", &LexicographicSettings::groups)
-      .def_rw("priorities", &LexicographicSettings::priorities)
-      .def_rw("tau_max", &LexicographicSettings::tau_max)
-      .def_rw("Cw", &LexicographicSettings::Cw)
-      .def_rw("lw", &LexicographicSettings::lw)
-      .def_rw("uw", &LexicographicSettings::uw);
-
-  nb::class_<LqpTick, Tick>(m, "LqpTick", "The conventional LQP's tick.")
-      .def(nb::init<const std::string&, const std::vector<std::string>&,
-                    const std::vector<std::string>&>(),
-           nb::arg("model"), nb::arg("task_frames"), nb::arg("contact_frames"))
-      .def("configure", &LqpTick::configure, nb::arg("settings"))
-      .def(
-          "run",
-          [](LqpTick& tick, ConstVec q, ConstVec v, double t, nb::callable fn,
-             NativeSolvers* natives) {
-            PyLevelSolver solver(std::move(fn), natives);
-            return tick.run(q, v, t, solver);
-          },
-          nb::arg("q").noconvert(), nb::arg("v").noconvert(), nb::arg("t"), nb::arg("solve"),
-          nb::arg("natives").none() = nb::none())
-      .def_prop_ro("handles", [](const LqpTick& t) { return t.lqp().handles(); })
-      .def("slot", [](const LqpTick& t, int i) -> QpBuffers& { return slot_of(t.lqp().hierarchy(), i); },
-           nb::arg("i"), kView)
-      .def_prop_ro("result", [](const LqpTick& t) { return t.lqp().result(); })
-      .def_prop_ro("tau", [](const LqpTick& t) -> const Vector& { return t.lqp().tau(); }, kView)
-      .def_prop_ro("qdd", [](const LqpTick& t) -> const Vector& { return t.lqp().qdd(); }, kView)
-      .def_prop_ro("wrench", [](const LqpTick& t) -> const Vector& { return t.lqp().wrench(); },
-                   kView);
-
-  nb::enum_<HqpFinal>(m, "HqpFinal")
-      .value("torque", HqpFinal::kTorque)
-      .value("wrench", HqpFinal::kWrench)
-      .value("acceleration_energy", HqpFinal::kAccelerationEnergy)
-      .value("zero_torque_energy", HqpFinal::kZeroTorqueEnergy);
-
-  nb::class_<HqpSettings>(m, "HqpSettings")
-      .def(nb::init<>())
-      .def_rw("strategy", &HqpSettings::strategy)
-      .def_rw("finals", &HqpSettings::finals)
-      .def_rw("wrench_weights", &HqpSettings::wrench_weights)
-      .def_rw("prox", &HqpSettings::prox)
-      .def_rw("accept_tol", &HqpSettings::accept_tol)
-      .def_rw("level_weights", &HqpSettings::level_weights)
-      .def_rw("groups", &HqpSettings::groups)
-      .def_rw("priorities", &HqpSettings::priorities)
-      .def_rw("force_level", &HqpSettings::force_level)
-      .def_rw("tau_max", &HqpSettings::tau_max)
-      .def_rw("Cw", &HqpSettings::Cw)
-      .def_rw("lw", &HqpSettings::lw)
-      .def_rw("uw", &HqpSettings::uw);
-
-  nb::class_<HqpTick, Tick>(m, "HqpTick", "The conventional HQP's tick.")
-      .def(nb::init<const std::string&, const std::vector<std::string>&,
-                    const std::vector<std::string>&>(),
-           nb::arg("model"), nb::arg("task_frames"), nb::arg("contact_frames"))
-      .def("configure", &HqpTick::configure, nb::arg("settings"))
-      .def(
-          "run",
-          [](HqpTick& tick, ConstVec q, ConstVec v, double t, nb::callable fn,
-             NativeSolvers* natives) {
-            PyLevelSolver solver(std::move(fn), natives);
-            return tick.run(q, v, t, solver);
-          },
-          nb::arg("q").noconvert(), nb::arg("v").noconvert(), nb::arg("t"), nb::arg("solve"),
-          nb::arg("natives").none() = nb::none())
-      .def_prop_ro("handles", &HqpTick::handles)
-      .def("slot", [](const HqpTick& t, int i) -> QpBuffers& { return slot_of(t.hierarchy(), i); },
-           nb::arg("i"), kView)
-      .def_prop_ro("result", [](const HqpTick& t) { return t.result(); })
-      .def_prop_ro("tau", &HqpTick::tau, kView)
-      .def_prop_ro("qdd", &HqpTick::qdd, kView)
-      .def_prop_ro("wrench", &HqpTick::wrench, kView);
 }
 
 }  // namespace wbcbench

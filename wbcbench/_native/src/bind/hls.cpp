@@ -43,7 +43,7 @@ nb::list stats_list(const HlsSolver& s) {
 
 }  // namespace
 
-void bind_hls(nb::module_& m) {
+WBCBENCH_BIND(hls, kCore, m) {
   nb::enum_<HlsAlgorithm>(m, "HlsAlgorithm")
       .value("reduced_qr", HlsAlgorithm::kReducedQr)
       .value("full_qr", HlsAlgorithm::kFullQr)

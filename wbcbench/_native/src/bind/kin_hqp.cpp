@@ -50,7 +50,7 @@ nb::list levels(KinHqpTick& tick) {
 
 }  // namespace
 
-void bind_kin_hqp(nb::module_& m) {
+WBCBENCH_BIND(kin_hqp, kController, m) {
   m.def("closest_segment_segment", &segment_segment, nb::arg("a0"), nb::arg("a1"),
         nb::arg("b0"), nb::arg("b1"), "Closest points (pa, pb) of two segments.");
   m.def("closest_segment_box", &segment_box, nb::arg("a0"), nb::arg("a1"), nb::arg("center"),

@@ -36,4 +36,10 @@ class PyLevelSolver : public LevelSolver {
   NativeSolvers* natives_;
 };
 
+// Slot i of a hierarchy, as a tick's `slot(i)` returns it (an IndexError past the last).
+inline QpBuffers& slot_of(const Hierarchy& h, int i) {
+  if (i < 0 || i >= h.n_slots()) throw nb::index_error("no such QP slot");
+  return const_cast<QpBuffers&>(h.slot(i));
+}
+
 }  // namespace wbcbench

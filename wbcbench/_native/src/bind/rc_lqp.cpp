@@ -9,7 +9,7 @@
 
 namespace wbcbench {
 
-void bind_rc_lqp(nb::module_& m) {
+WBCBENCH_BIND(rc_lqp, kController, m) {
   using ConstVec = Eigen::Ref<const Vector>;
   nb::enum_<Assembly>(m, "Assembly")
       .value("exact", Assembly::kExact)

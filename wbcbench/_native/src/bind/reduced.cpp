@@ -8,7 +8,7 @@
 
 namespace wbcbench {
 
-void bind_reduced(nb::module_& m) {
+WBCBENCH_BIND(reduced, kCore, m) {
   nb::class_<ChainSpec>(m, "ChainSpec", "One unconstrained chain of a ChainSplit.")
       .def(nb::init<>())
       .def_rw("idx", &ChainSpec::idx)

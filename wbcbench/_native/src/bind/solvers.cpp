@@ -34,7 +34,7 @@ nb::tuple record_tuple(const NativeSolvers::Record& r) {
 
 }  // namespace
 
-void bind_solvers(nb::module_& m) {
+WBCBENCH_BIND(solvers, kCore, m) {
   nb::class_<QpSolver>(m, "QpSolver", "A QP solver called from C++ (the lean path's mirror).")
       .def(
           "solve",

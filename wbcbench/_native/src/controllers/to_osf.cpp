@@ -1,0 +1,106 @@
+#include "controllers/to_osf.hpp"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace wbcbench {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+}  // namespace
+
+void ToOsfTick::configure(const ToOsfSettings& settings) {
+  s_ = settings;
+  configure_osf(settings, true);
+  if (s_.row_weights.size() != nr_) throw std::invalid_argument("to_osf: one weight per task row");
+  if (s_.Sf.cols() != nc_) throw std::invalid_argument("to_osf: Sf of wrong size");
+  nx_ = nr_ + nc_;
+  h_task_ = s_.row_weights;
+  scale_ = nr_ ? 1.0 / h_task_.maxCoeff() : 1.0;
+  // F_opt is solved for in units of σ so that both Hessian blocks are O(1)
+  w_f_ = (nc_ && s_.wrench_weight > 0) ? scale_ * s_.wrench_weight : scale_;
+  const double sigma = 1.0 / std::sqrt(w_f_);
+  D_.setOnes(nx_);
+  D_.tail(nc_).setConstant(sigma);
+  const bool box = (s_.acc_bound.array().abs() < kInf).any();
+  qp_.resize(nx_, nc_ ? 6 : 0, k() + static_cast<int>(s_.Cw.rows()), box);
+  if (box) {
+    qp_.lb.head(nr_) = -s_.acc_bound;
+    qp_.ub.head(nr_) = s_.acc_bound;
+  }
+  Af_.setZero(nc_, nx_);
+  Af_.rightCols(nc_).setIdentity();
+  rho_.setZero(nr_);
+  f_opt_.setZero(nc_);
+}
+
+bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v,
+                      double t) {
+  const auto t0 = Clock::now();
+  evaluate_osf(q, v, t);
+  const OsfParams& p = params_;
+  const int kk = k();
+  const Vector& ref = tasks_.acc_ref();
+  // f = A_f x + f_c  (eq. 13)
+  Af_.leftCols(nr_).noalias() = p.F * p.K;
+  fc_ = p.f0;
+  fc_.noalias() += p.F * p.gamma0;
+  qp_.H.setZero();
+  qp_.g.setZero();
+  qp_.H.topLeftCorner(nr_, nr_).diagonal() = scale_ * h_task_;
+  qp_.g.head(nr_) = -scale_ * h_task_.cwiseProduct(ref);
+  if (nc_ && s_.wrench_weight > 0) {
+    const double hw = scale_ * s_.wrench_weight;
+    if (s_.wrench_total) {
+      SA_.noalias() = s_.Sf * Af_;
+      qp_.H.noalias() += hw * (SA_.transpose() * SA_);
+      qp_.g.noalias() += hw * (SA_.transpose() * (s_.Sf * fc_));
+    } else {
+      qp_.H.bottomRightCorner(nc_, nc_).noalias() += hw * (s_.Sf.transpose() * s_.Sf);
+    }
+  }
+  qp_.H.bottomRightCorner(nc_, nc_).diagonal().array() += s_.regularization * w_f_;
+  if (nc_) {
+    qp_.A.rightCols(nc_) = p.G;  // G F_opt = 0 (eq. 14)
+  }
+  qp_.C.topLeftCorner(kk, nr_) = p.K;
+  qp_.C.topRightCorner(kk, nc_) = p.Yw;
+  qp_.l.head(kk) = -s_.tau_max - p.gamma0;
+  qp_.u.head(kk) = s_.tau_max - p.gamma0;
+  if (nc_) {
+    qp_.C.bottomRows(nw_).noalias() = s_.Cw * Af_;
+    const Vector cwf = s_.Cw * fc_;
+    qp_.l.tail(nw_) = s_.lw - cwf;
+    qp_.u.tail(nw_) = s_.uw - cwf;
+  }
+  // x = D x̃
+  qp_.H = D_.asDiagonal() * qp_.H * D_.asDiagonal();
+  qp_.g.array() *= D_.array();
+  qp_.A = qp_.A * D_.asDiagonal();
+  qp_.C = qp_.C * D_.asDiagonal();
+  const bool ok = qp_.finite();
+  times_.build = seconds_since(t0) - times_.dynamics - times_.params;
+  return ok;
+}
+
+void ToOsfTick::finish(const Eigen::Ref<const Vector>& x) {
+  const auto t0 = Clock::now();
+  if (x.size() != nx_) throw std::invalid_argument("to_osf: solution of wrong size");
+  rho_ = x.head(nr_);  // x = D x̃: D is 1 on the references, σ on F_opt
+  f_opt_ = x.tail(nc_).cwiseProduct(D_.tail(nc_));
+  prev_.setZero(k());
+  for (int i = 0; i < levels(); ++i) {
+    params_.level_step(i, prev_, rho_.segment(offsets_[i], os_.level_dims[i]), work_);
+    partial_.row(i) = work_.transpose();
+    prev_ = work_;
+  }
+  Vector dist = Vector::Zero(k());
+  if (nc_) dist.noalias() = params_.Yw * f_opt_;
+  realise(dist);
+  times_.build += seconds_since(t0);
+}
+
+}  // namespace wbcbench
