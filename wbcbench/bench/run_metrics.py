@@ -5,7 +5,8 @@
 * constraints: torque-limit excess (commanded), friction / CoP / normal-force violations of the
   predicted (commanded) and simulated wrenches, each the maximum over the window (friction,
   CoP and yaw on the ticks where the contact carries load; ``unloaded_contact_ticks_*`` counts
-  the others); for kinematic runs instead, ``joint_limit_violation`` [rad] and
+  the others); for kinematic runs instead, ``joint_limit_violation`` [rad],
+  ``max_contact_drift`` [m] (the held contact frames' largest displacement since the start) and
   ``min_collision_distance`` [m];
 * failures: failed control ticks;
 * amendments: ``amend_mean`` / ``amend_max`` per task over the window, for controllers that
@@ -103,6 +104,9 @@ def run_metrics(
     if "joint_margin" in cols:
         violation = max(0.0, -float(np.min(cols["joint_margin"])))
         rows.append(MetricRow("*", "joint_limit_violation", violation, "rad"))
+    if "contact_drift" in cols:
+        drift = float(np.max(cols["contact_drift"], initial=0.0))
+        rows.append(MetricRow("*", "max_contact_drift", drift, "m"))
     if "collision_distance" in cols:
         rows.append(
             MetricRow("*", "min_collision_distance", float(np.min(cols["collision_distance"])), "m")
