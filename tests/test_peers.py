@@ -10,16 +10,21 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
+from wbcbench.cli import main
 from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.peers.common import INSTALL, PeerController, import_library
+from wbcbench.report.load import load_results
+from wbcbench.report.plots import peers_figure
+from wbcbench.report.tables import TABLES
 from wbcbench.robots.loader import Robot
 from wbcbench.runs import plan_run, scenario_context, scenario_obstacles
 from wbcbench.scenarios.load import controller_settings, load_scenario
@@ -194,17 +199,19 @@ def test_contacts_held_and_limits_respected_after_integration(name: str, comanpl
     assert q[7 + joints[0]] > comanplus.q_max[joints[0]] - 1e-3
 
 
-def test_mink_keeps_its_collision_pairs_apart(comanplus: Robot) -> None:
-    """mink's collision limit on rqr_stress (the arm threaded through two frames, 0.5 mm
-    gaps): kin_hqp's capsule distance stays non-negative over the steps, and with the limit
-    off the same steps are free to close it further."""
+def test_mink_collision_limit_is_kin_hqps_distance_rate_bound(comanplus: Robot) -> None:
+    """mink's collision limit on rqr_stress (the arm threaded through two frames, 0.5 mm gaps,
+    the joints' velocity bound lifted so that the hand pushes into the frame): each step closes
+    kin_hqp's capsule distance by no more than ξ_d dt (d − d_safe), up to the step's second
+    order, so it never goes below d_safe = 0."""
     controller = build("mink", comanplus, "rqr_stress", velocity_limit=None)
+    xi, margin = controller.config.collision_gain, controller.config.collision_margin
     q, _ = comanplus.keyframe("stand")
     started(controller, q)
     v = np.zeros(comanplus.nv)
     dt = controller.ctx.dt
     distances = []
-    for tick in range(40):
+    for tick in range(60):
         state = RobotState(comanplus, q, v)
         out = controller.step(state, tick * dt)
         assert out.ok, out.message
@@ -212,7 +219,11 @@ def test_mink_keeps_its_collision_pairs_apart(comanplus: Robot) -> None:
         distances.append(out.diagnostics["min_distance"])
         q = pin.integrate(comanplus.pin_model, q, out.qd * dt)
         v = out.qd
-    assert min(distances) > -1e-4
+    d = np.asarray(distances)
+    assert d[0] - d[-1] > 1e-5  # the hand did push toward the frame
+    closing = d[:-1] - d[1:]
+    assert np.all(closing <= xi * dt * (d[:-1] - margin) + 1e-6)
+    assert d.min() >= margin - 1e-6
 
 
 # -- closed loop -------------------------------------------------------------------------------
@@ -232,3 +243,47 @@ def test_closed_loop_reach_tracks(name: str) -> None:
     assert hand[-1] < 0.05
     assert np.max(cols["contact_drift"]) < 1e-3
     assert np.min(cols["joint_margin"]) >= -1e-9
+
+
+# -- the report ----------------------------------------------------------------------------------
+
+
+def test_peers_table_and_figure_from_a_sweep(tmp_path: Path) -> None:
+    """A short sweep of the three on rqr_gaze (tracking and the replay of kin_hqp's states)
+    fills the peers table, tracking, times and hierarchy columns, and draws its figure."""
+    peer("pink")
+    peer("mink")
+    sweep = tmp_path / "peers.yaml"
+    sweep.write_text(
+        "version: 1\n"
+        "tracking:\n"
+        "  - scenarios: [rqr_gaze]\n"
+        "    controllers: [kin_hqp, pink, mink]\n"
+        "    set: [duration=0.5, 'metrics.window=[0, 0.5]']\n"
+        "timing:\n"
+        "  - scenarios: [rqr_gaze]\n"
+        "    controllers: [kin_hqp, pink, mink]\n"
+        "    solvers: [default]\n"
+        "    impls: [python]\n"
+        "    ticks: 30\n"
+        "    warmup: 5\n"
+        "    record_with: [kin_hqp]\n"
+    )
+    out = tmp_path / "res"
+    assert main(["sweep", str(sweep), "--out", str(out), "--executor", "serial"]) == 0
+    table = TABLES["peers_kinematic"](load_results(out))
+    assert table.frame is not None
+    frame = table.frame.set_index("controller")
+    assert list(frame.index) == ["kin_hqp", "pink", "mink"]
+    assert (frame["status"] == "ok").all()
+    assert frame["priority 1 error mean / final"].str.startswith("hand ").all()
+    assert frame["lower tasks' error mean / final"].str.startswith("gaze ").all()
+    assert np.isfinite(frame["t median python [µs]"]).all()
+    assert (frame["joint-limit violation [rad]"] == 0.0).all()
+    # the strict hierarchy gives the gaze nothing of the hand's level; the weighted QPs do
+    residual = frame["priority 1 residual mean / max"].str.split(" / ").str[0].astype(float)
+    assert residual["kin_hqp"] < residual["pink"] and residual["kin_hqp"] < residual["mink"]
+    figures = out / "figures"
+    figures.mkdir(exist_ok=True)
+    paths = peers_figure(load_results(out), figures)
+    assert [p.name for p in paths] == ["peers_kinematic.png", "peers_kinematic.svg"]

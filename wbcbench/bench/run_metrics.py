@@ -11,6 +11,9 @@
 * failures: failed control ticks;
 * amendments: ``amend_mean`` / ``amend_max`` per task over the window, for controllers that
   report ``diag.amend.<task>`` (to_osf);
+* level residuals: ``residual_mean`` / ``residual_max`` per level (task = the level's name)
+  over the window, for velocity-level controllers that report ``diag.residual.<level>``
+  (‖J q̇ − r‖ of a priority's tasks: kin_hqp, pink, mink);
 * timing: per stage ``t_<stage>_median_us`` and friends, after the warm-up ticks.
 """
 
@@ -112,8 +115,16 @@ def run_metrics(
             MetricRow("*", "min_collision_distance", float(np.min(cols["collision_distance"])), "m")
         )
     rows.append(MetricRow("*", "solve_failures", float(result.failures), "ticks"))
-    # task-reference amendments ‖ẍ_opt − ẍ*‖ of the optimising OSF controllers (to_osf)
+    # task-reference amendments ‖ẍ_opt − ẍ*‖ of the optimising OSF controllers (to_osf), and
+    # the velocity residual ‖J q̇ − r‖ of each level of the velocity-level controllers
     for key in cols:
+        if key.startswith("diag.residual."):
+            w = cols[key][mask]
+            w = w[np.isfinite(w)]
+            if w.size:
+                level = key.removeprefix("diag.residual.")
+                rows.append(MetricRow(level, "residual_mean", float(np.mean(w)), "m/s|rad/s"))
+                rows.append(MetricRow(level, "residual_max", float(np.max(w)), "m/s|rad/s"))
         if key.startswith("diag.amend."):
             w = cols[key][mask]
             w = w[np.isfinite(w)]

@@ -194,12 +194,14 @@ class Reference:
         term: its evaluation (for the logs).
         rate: r = ẋ_d + λ e on the selected axes, capped (full dim,) [m/s, rad/s].
         cost: the cost of each axis (full dim,): the priority's factor, 0 off the selection.
+        rows: the selected axes' indices into the full dimension (m,).
     """
 
     task: Task
     term: TaskTerm
     rate: Array
     cost: Array
+    rows: NDArray[np.intp]
 
 
 @dataclass
@@ -383,7 +385,7 @@ class PeerController(Controller):
             r, c = full.copy(), full.copy()
             r[rows] = rate
             c[rows] = self.priority_cost(task)
-            out.append(Reference(task, term, r, c))
+            out.append(Reference(task, term, r, c, rows))
         return out
 
     def gaze_reference(self, state: RobotState, t: float) -> GazeReference | None:
@@ -424,6 +426,8 @@ class PeerController(Controller):
 
         terms = [ref.term for ref in refs] + ([gaze.term] if gaze is not None else [])
         diag = problem_counts(problem)
+        if found:
+            diag.update(level_residuals(refs, gaze, qd))
         distances = self.collision.evaluate(state).d
         if distances.size:
             diag["min_distance"] = float(distances.min())
@@ -450,6 +454,27 @@ class PeerController(Controller):
             iterations=float(getattr(result, "iter", None) or np.nan),
             diagnostics=diag,
         )
+
+
+def level_residuals(
+    refs: list[Reference], gaze: GazeReference | None, qd: Array
+) -> dict[str, float]:
+    """``residual.<level>``: ‖J q̇ − r‖ of the tasks of each priority, named as kin_hqp names
+    its levels (the task names joined by ``+``), so that the top level's residual shows how far
+    the lower ones pulled it [m/s, rad/s]."""
+    rows: list[tuple[int, str, Array, Array]] = [
+        (ref.task.priority, ref.task.name, ref.term.J, ref.rate[ref.rows]) for ref in refs
+    ]
+    if gaze is not None:
+        rows.append((gaze.term.task.priority, gaze.term.task.name, gaze.term.J, gaze.rate))
+    out = {}
+    for p in sorted({row[0] for row in rows}):
+        level = [row for row in rows if row[0] == p]
+        J = np.vstack([row[2] for row in level])
+        r = np.concatenate([row[3] for row in level])
+        name = "+".join(row[1] for row in level)
+        out[f"residual.{name}"] = float(np.linalg.norm(J @ qd - r))
+    return out
 
 
 def problem_counts(problem: Any) -> dict[str, float]:

@@ -19,10 +19,12 @@ What mink expresses here, beside the table in :mod:`wbcbench.peers.common`:
 - held contacts: a ``FrameTask`` per sole in ``build_ik``'s ``constraints``, gain 0;
 - limits: ``ConfigurationLimit`` (gain ξ dt), ``VelocityLimit`` (per joint) and, with
   ``collision: true``, ``CollisionAvoidanceLimit`` on kin_hqp's capsule pairs and on
-  ``obstacle_bodies`` × the obstacle boxes: the normal velocity of each pair closer than
-  ``collision_detection_distance`` is bounded by ξ_d (d − d_safe) with gain ξ_d dt, kin_hqp's
-  bound ḋ ≥ −ξ_d (d − d_safe) on MuJoCo's own geom distances (``mj_geomDistance``) instead of
-  kin_hqp's closest-point formulas; pairs farther apart add no row (kin_hqp keeps every pair);
+  ``obstacle_bodies`` × the obstacle boxes, on MuJoCo's own geom distances
+  (``mj_geomDistance``) instead of kin_hqp's closest-point formulas. mink 1.3 bounds the
+  approach of a pair over the step, −ḋ dt, by gain · (d − d_min) / dt (a displacement against
+  a distance over the period), so the gain that gives kin_hqp's bound ḋ ≥ −ξ_d (d − d_safe)
+  is ξ_d dt², not ξ_d dt. Pairs farther apart than ``collision_detection_distance`` add no row
+  (kin_hqp keeps every pair);
 - the gaze: mink's ``LookAtTask`` on the same frame axis and target. Its error is a − d̂ (the
   axis against the unit direction to the target), not the paper's v × p; its gain is λ dt,
   scaled each tick by min(1, cap / ‖λ (v × p)‖) so that kin_hqp's gaze cap holds.
@@ -166,7 +168,8 @@ class MinkIK(PeerController):
                 mink.CollisionAvoidanceLimit(
                     model,
                     pairs,
-                    gain=min(1.0, cfg.collision_gain * dt),
+                    # mink bounds the displacement's normal part by gain (d − d_min) / dt
+                    gain=min(1.0, cfg.collision_gain * dt * dt),
                     minimum_distance_from_collisions=cfg.collision_margin,
                     collision_detection_distance=cfg.collision_detection_distance,
                 )
