@@ -332,6 +332,8 @@ def hls_figure(res: Results, out: Path) -> list[Path]:
 
 
 PEER_COLORS = {"kin_hqp": "C0", "pink": "C1", "mink": "C2"}
+#: kin_hqp drawn wide and solid, so that a peer that follows it exactly shows on top of it
+PEER_LINES = {"kin_hqp": ("-", 2.4), "pink": ("--", 1.3), "mink": (":", 1.6)}
 
 
 def _peer_logs(res: Results, scenario: str) -> list[tuple[str, pd.DataFrame]]:
@@ -391,7 +393,8 @@ def peers_figure(res: Results, out: Path) -> list[Path]:
                 ax.plot(
                     d["t"],
                     y.where(y > 0) if log_y else y,
-                    lw=1.2,
+                    lw=PEER_LINES[controller][1],
+                    linestyle=PEER_LINES[controller][0],
                     label=controller,
                     color=PEER_COLORS[controller],
                 )
