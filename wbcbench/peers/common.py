@@ -454,7 +454,6 @@ class PeerController(Controller):
             terms=terms,
             timings=timings,
             qd=qd,
-            iterations=float(getattr(result, "iter", None) or np.nan),
             diagnostics=diag,
         )
 

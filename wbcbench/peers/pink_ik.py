@@ -19,14 +19,16 @@ What pink expresses here, beside the table in :mod:`wbcbench.peers.common`:
   own extension point, a :class:`pink.tasks.Task` subclass whose error and Jacobian are that
   row's (``wbcbench.peers.pink_tasks``).
 
-What pink cannot express: collision avoidance among its limits. pink 4.4 has control barrier
-functions (``pink.barriers``: ``SelfCollisionBarrier`` over a Pinocchio ``GeometryModel``'s
-collision pairs through coal, ``PositionBarrier``, ``BodySphericalBarrier``), which enter the QP
-as a barrier's inequality plus a safe-displacement cost, not as kin_hqp's distance-rate bound
-ḋ ≥ −ξ (d − d_safe); no capsule pair or obstacle box is passed to them, so ``pink`` avoids
-neither self-collisions nor the scenario's obstacles (their distance is measured, diagnostic
-``min_distance``). Nor the rest listed in :mod:`wbcbench.peers.common`: strict priorities, the
-CoM equality and polygon, ``base: support_foot``.
+What pink cannot express: collision avoidance among its limits. pink 4.4's collision handling
+is a barrier (``pink.barriers.SelfCollisionBarrier``: a control barrier function on the
+distances of a Pinocchio ``GeometryModel``'s collision pairs through coal, with a
+safe-displacement term added to the cost), which its documentation defines for smooth convex
+geometries only: the scenario's obstacle boxes are outside it (``PositionBarrier`` and
+``BodySphericalBarrier`` bound a frame's position or two frames' spheres, not a capsule against a
+box). The wrapper passes no collision geometry to pink, so ``pink`` avoids neither
+self-collisions nor obstacles (their distance is measured, diagnostic ``min_distance``). Nor the
+rest listed in :mod:`wbcbench.peers.common`: strict priorities, the CoM equality and polygon,
+``base: support_foot``.
 """
 
 from __future__ import annotations
@@ -43,7 +45,6 @@ from wbcbench.peers.common import (
     PeerConfig,
     PeerController,
     Reference,
-    import_library,
 )
 from wbcbench.tasks.tasks import (
     ComTask,
@@ -116,8 +117,9 @@ class PinkIK(PeerController):
             self.com_hold = pink.tasks.ComTask(cost=np.array([cfg.com_cost, cfg.com_cost, 0.0]))
         self.gaze_rows = None
         if self.gaze is not None:
-            rows = import_library(self.name, "wbcbench.peers.pink_tasks", "pin-pink")
-            self.gaze_rows = rows.RowsTask(cost=self.priority_cost(self.gaze) * np.ones(3))
+            from wbcbench.peers.pink_tasks import RowsTask  # imports pink
+
+            self.gaze_rows = RowsTask(cost=self.priority_cost(self.gaze) * np.ones(3))
         self.limits: list[Any] = []
         if cfg.limits:
             self.limits = [
