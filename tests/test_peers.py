@@ -20,7 +20,7 @@ import pytest
 from wbcbench.cli import main
 from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState
-from wbcbench.errors import ControllerError
+from wbcbench.errors import ControllerError, WbcBenchError
 from wbcbench.peers.common import INSTALL, PeerController, import_library
 from wbcbench.report.load import load_results
 from wbcbench.report.plots import peers_figure
@@ -93,7 +93,7 @@ def test_a_missing_library_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> N
     monkeypatch.setattr(cls, "library", "wbcbench_no_such_module")
     reason = cls.applies_to(load_scenario("rqr_reach").spec)
     assert reason == (f"pin-pink (module 'wbcbench_no_such_module') is not installed: {INSTALL}")
-    with pytest.raises(Exception, match=r"pip install 'wbcbench\[peers\]'"):
+    with pytest.raises(WbcBenchError, match=r"pip install 'wbcbench\[peers\]'"):
         plan_run("rqr_reach", "pink")
 
 
