@@ -25,6 +25,7 @@ LAYERS: tuple[str, ...] = (
     "metrics",
     "scenarios",
     "controllers",
+    "peers",
     "runs",
     "sim",
     "bench",

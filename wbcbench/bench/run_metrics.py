@@ -5,11 +5,15 @@
 * constraints: torque-limit excess (commanded), friction / CoP / normal-force violations of the
   predicted (commanded) and simulated wrenches, each the maximum over the window (friction,
   CoP and yaw on the ticks where the contact carries load; ``unloaded_contact_ticks_*`` counts
-  the others); for kinematic runs instead, ``joint_limit_violation`` [rad] and
+  the others); for kinematic runs instead, ``joint_limit_violation`` [rad],
+  ``max_contact_drift`` [m] (the held contact frames' largest displacement since the start) and
   ``min_collision_distance`` [m];
 * failures: failed control ticks;
 * amendments: ``amend_mean`` / ``amend_max`` per task over the window, for controllers that
   report ``diag.amend.<task>`` (to_osf);
+* level residuals: ``residual_mean`` / ``residual_max`` per level (task = the level's name)
+  over the window, for velocity-level controllers that report ``diag.residual.<level>``
+  (‖J q̇ − r‖ of a priority's tasks: kin_hqp, pink, mink);
 * timing: per stage ``t_<stage>_median_us`` and friends, after the warm-up ticks.
 """
 
@@ -103,13 +107,24 @@ def run_metrics(
     if "joint_margin" in cols:
         violation = max(0.0, -float(np.min(cols["joint_margin"])))
         rows.append(MetricRow("*", "joint_limit_violation", violation, "rad"))
+    if "contact_drift" in cols:
+        drift = float(np.max(cols["contact_drift"], initial=0.0))
+        rows.append(MetricRow("*", "max_contact_drift", drift, "m"))
     if "collision_distance" in cols:
         rows.append(
             MetricRow("*", "min_collision_distance", float(np.min(cols["collision_distance"])), "m")
         )
     rows.append(MetricRow("*", "solve_failures", float(result.failures), "ticks"))
-    # task-reference amendments ‖ẍ_opt − ẍ*‖ of the optimising OSF controllers (to_osf)
+    # task-reference amendments ‖ẍ_opt − ẍ*‖ of the optimising OSF controllers (to_osf), and
+    # the velocity residual ‖J q̇ − r‖ of each level of the velocity-level controllers
     for key in cols:
+        if key.startswith("diag.residual."):
+            w = cols[key][mask]
+            w = w[np.isfinite(w)]
+            if w.size:
+                level = key.removeprefix("diag.residual.")
+                rows.append(MetricRow(level, "residual_mean", float(np.mean(w)), "m/s|rad/s"))
+                rows.append(MetricRow(level, "residual_max", float(np.max(w)), "m/s|rad/s"))
         if key.startswith("diag.amend."):
             w = cols[key][mask]
             w = w[np.isfinite(w)]

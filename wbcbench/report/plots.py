@@ -7,6 +7,8 @@
 * ``timing_solvers``: median step time per controller and solver;
 * ``solvers_success`` / ``solvers_time``: the solver comparison;
 * ``rqr_fig1``: hierarchy time against the problem size N;
+* ``peers_kinematic``: kin_hqp beside pink and mink: the top level's error and residual while a
+  lower level conflicts (rqr_gaze), the collision distance on rqr_stress, and time per tick;
 * ``paper_*``: each paper's key comparison beside the paper's numbers
   (:mod:`wbcbench.report.paper_figures`).
 """
@@ -343,6 +345,118 @@ def hls_figure(res: Results, out: Path) -> list[Path]:
     return _save(fig, out, "rqr_fig1")
 
 
+PEER_COLORS = {"kin_hqp": "C0", "pink": "C1", "mink": "C2"}
+#: kin_hqp drawn wide and solid, so that a peer that follows it exactly shows on top of it
+PEER_LINES = {"kin_hqp": ("-", 2.4), "pink": ("--", 1.3), "mink": (":", 1.6)}
+
+
+def _peer_logs(res: Results, scenario: str) -> list[tuple[str, pd.DataFrame]]:
+    """Per controller of the peers table, the log of its preferred run of ``scenario``."""
+    from wbcbench.report.tables.common import _prefer_full
+
+    runs = res.of_kind("tracking")
+    out = []
+    for controller in PEER_COLORS:
+        sel = runs[(runs["scenario"] == scenario) & (runs["controller"] == controller)]
+        if sel.empty:
+            continue
+        log = res.log(_prefer_full(res, sel).iloc[-1]["run_id"])
+        if not log.empty:
+            out.append((controller, log))
+    return out
+
+
+def peers_figure(res: Results, out: Path) -> list[Path]:
+    """kin_hqp, pink and mink: hierarchy, constraints and time per tick in one figure."""
+    from wbcbench.report.tables.peers import peers_kinematic
+
+    table = peers_kinematic(res)
+    if table.frame is None:
+        return []
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7))
+    gaze = _peer_logs(res, "rqr_gaze")
+    panels = (
+        (axes[0, 0], gaze, "err.hand.pos", 1e3, "rqr_gaze: hand error (priority 1) [mm]", True),
+        (
+            axes[0, 1],
+            gaze,
+            "diag.residual.hand",
+            1.0,
+            "rqr_gaze: ‖J q̇ − r‖ of the hand level [m/s]\n(what the gaze below took from it)",
+            True,
+        ),
+        (
+            axes[1, 0],
+            _peer_logs(res, "rqr_stress"),
+            "collision_distance",
+            1e3,
+            "rqr_stress: smallest capsule distance [mm]\n(arm threaded through two frames)",
+            False,
+        ),
+    )
+    for ax, logs, col, scale, title, log_y in panels:
+        drawn = [(c, lg) for c, lg in logs if col in lg.columns]
+        if not drawn:
+            ax.text(0.5, 0.5, "no runs", ha="center", va="center", transform=ax.transAxes)
+            ax.set_title(title, fontsize=9)
+            continue
+        for controller, lg in drawn:
+            if col in lg.columns:
+                d = _thin(lg)
+                y = scale * d[col]
+                ax.plot(
+                    d["t"],
+                    y.where(y > 0) if log_y else y,
+                    lw=PEER_LINES[controller][1],
+                    linestyle=PEER_LINES[controller][0],
+                    label=controller,
+                    color=PEER_COLORS[controller],
+                )
+        if log_y:
+            ax.set_yscale("log")
+        else:
+            ax.axhline(0.0, color="k", lw=0.8)
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("time [s]")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
+    ax = axes[1, 1]
+    f = table.frame
+    scenarios = list(dict.fromkeys(f["scenario"]))
+    series = [(c, "python") for c in PEER_COLORS] + [("kin_hqp", "native")]
+    width = 0.8 / len(series)
+    for k, (controller, impl) in enumerate(series):
+        rows = f[f["controller"] == controller].set_index("scenario").reindex(scenarios)
+        median = rows.get(f"t median {impl} [µs]")
+        p99 = rows.get(f"t p99 {impl} [µs]")
+        if median is None or not np.isfinite(median.to_numpy(dtype=float)).any():
+            continue
+        x = np.arange(len(scenarios)) + (k - (len(series) - 1) / 2) * width
+        ax.bar(
+            x,
+            median,
+            width,
+            color=PEER_COLORS[controller],
+            label=f"{controller} ({impl})",
+            hatch="//" if impl == "native" else None,
+            edgecolor="white",
+        )
+        if p99 is not None:
+            ax.plot(x, p99, "v", color="k", ms=4)
+    ax.set_xticks(np.arange(len(scenarios)))
+    ax.set_xticklabels([s.replace("_kinematic", "\n(kinematic)") for s in scenarios], fontsize=7)
+    ax.set_yscale("log")
+    ax.set_ylabel("time per tick [µs] (bar: median, ▼: p99)")
+    ax.set_title("Replay of the same recorded states", fontsize=9)
+    ax.grid(alpha=0.3, axis="y", which="both")
+    ax.legend(fontsize=7)
+    fig.suptitle(
+        "Velocity-level peers: kin_hqp (strict levels) beside pink and mink (one weighted QP)",
+        fontsize=10,
+    )
+    return _save(fig, out, "peers_kinematic")
+
+
 def write_plots(folder: str | Path) -> list[Path]:
     """Every figure the results allow, into ``<folder>/figures``."""
     res = load_results(folder)
@@ -356,6 +470,7 @@ def write_plots(folder: str | Path) -> list[Path]:
         timing_solver_figure,
         solver_figures,
         hls_figure,
+        peers_figure,
     ):
         paths += fn(res, out)
     from wbcbench.report.paper_figures import write_paper_figures

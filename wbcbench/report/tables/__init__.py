@@ -10,7 +10,8 @@ Timing values are from open-loop replay (``kind = timing``) and prefer, for each
 paper's own solver when it was timed, else the default solver; hot mode before warm before cold.
 
 One module per paper (``to_osf``, ``osf_hqp``, ``rc_lqp``, ``rqr``) beside the published numbers
-in :mod:`wbcbench.report.papers`; what they share is in ``common``.
+in :mod:`wbcbench.report.papers`, and ``peers`` (kin_hqp beside pink and mink, no published
+numbers); what they share is in ``common``.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from wbcbench.report.tables.common import (
     scenario_spec,
 )
 from wbcbench.report.tables.osf_hqp import osf_hqp_backends, osf_hqp_table2, osf_hqp_table3
+from wbcbench.report.tables.peers import peers_kinematic
 from wbcbench.report.tables.rc_lqp import RC_LQP_COLUMNS, rc_lqp_dof, rc_lqp_table3
 from wbcbench.report.tables.rqr import rqr_fig1
 from wbcbench.report.tables.to_osf import (
@@ -71,6 +73,7 @@ TABLES: dict[str, Callable[[Results], PaperTable]] = {
     "rc_lqp_table3": rc_lqp_table3,
     "rc_lqp_dof": rc_lqp_dof,
     "rqr_fig1": rqr_fig1,
+    "peers_kinematic": peers_kinematic,
 }
 
 
