@@ -131,6 +131,33 @@ class GazeSpec(BaseModel):
     speed_limit: float | None = Field(None, gt=0, description="cap on ‖λ (v × p)‖ [m/s]")
 
 
+def name_errors(
+    spec: Scenario,
+    robot: Robot,
+    speed_limits: dict[str, float],
+    self_collision: list[tuple[str, str]] | None,
+    obstacle_bodies: list[str] | None,
+) -> list[tuple[str, str]]:
+    """``(key, message)`` for each speed limit that names no task of the scenario and each
+    collision body without a capsule (the settings kin_hqp and its peers share)."""
+    out: list[tuple[str, str]] = []
+    tasks = [t.name for t in spec.tasks]
+    for name in speed_limits:
+        if name not in tasks:
+            out.append((f"speed_limits.{name}", str(UnknownNameError("task", name, tasks))))
+    capsules = sorted(robot_capsules(robot))
+    for i, pair in enumerate(self_collision or []):
+        for j, body in enumerate(pair):
+            if body not in capsules:
+                error = UnknownNameError("capsule body", body, capsules)
+                out.append((f"self_collision[{i}][{j}]", str(error)))
+    for i, body in enumerate(obstacle_bodies or []):
+        if body not in capsules:
+            error = UnknownNameError("capsule body", body, capsules)
+            out.append((f"obstacle_bodies[{i}]", str(error)))
+    return out
+
+
 class KinHqpConfig(NativeImplConfig):
     """Settings of the prioritized kinematic controller (defaults: the paper's values)."""
 
@@ -168,22 +195,9 @@ class KinHqpConfig(NativeImplConfig):
 
     def robot_errors(self, spec: Scenario, robot: Robot) -> list[tuple[str, str]]:
         """Speed limits name the scenario's tasks; collision bodies have capsules."""
-        out: list[tuple[str, str]] = []
-        tasks = [t.name for t in spec.tasks]
-        for name in self.speed_limits:
-            if name not in tasks:
-                out.append((f"speed_limits.{name}", str(UnknownNameError("task", name, tasks))))
-        capsules = sorted(robot_capsules(robot))
-        for i, pair in enumerate(self.self_collision or []):
-            for j, body in enumerate(pair):
-                if body not in capsules:
-                    error = UnknownNameError("capsule body", body, capsules)
-                    out.append((f"self_collision[{i}][{j}]", str(error)))
-        for i, body in enumerate(self.obstacle_bodies or []):
-            if body not in capsules:
-                error = UnknownNameError("capsule body", body, capsules)
-                out.append((f"obstacle_bodies[{i}]", str(error)))
-        return out
+        return name_errors(
+            spec, robot, self.speed_limits, self.self_collision, self.obstacle_bodies
+        )
 
     @model_validator(mode="after")
     def _baselines_take_equalities(self) -> KinHqpConfig:

@@ -65,6 +65,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import time
+from abc import abstractmethod
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any, ClassVar, Literal
@@ -85,12 +86,13 @@ from wbcbench.controllers.kin_hqp import (
     GazeTask,
     default_obstacle_bodies,
     default_self_pairs,
+    name_errors,
 )
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError, UnknownNameError
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.schema import Scenario
-from wbcbench.tasks.collision import Box, CollisionModel, robot_capsules
+from wbcbench.tasks.collision import Box, CollisionModel
 from wbcbench.tasks.tasks import (
     JointDampingTask,
     JointPostureTask,
@@ -166,21 +168,7 @@ class PeerConfig(ControllerConfig):
 
     def robot_errors(self, spec: Scenario, robot: Robot) -> list[tuple[str, str]]:
         """Speed limits name the scenario's tasks; collision bodies have capsules."""
-        out: list[tuple[str, str]] = []
-        tasks = [t.name for t in spec.tasks]
-        for name in self.speed_limits:
-            if name not in tasks:
-                out.append((f"speed_limits.{name}", str(UnknownNameError("task", name, tasks))))
-        capsules = sorted(robot_capsules(robot))
-        for i, pair in enumerate(self.self_collision or []):
-            for j, body in enumerate(pair):
-                if body not in capsules:
-                    error = UnknownNameError("capsule body", body, capsules)
-                    out.append((f"self_collision[{i}][{j}]", str(error)))
-        for i, body in enumerate(self.obstacle_bodies or []):
-            if body not in capsules:
-                error = UnknownNameError("capsule body", body, capsules)
-                out.append((f"obstacle_bodies[{i}]", str(error)))
+        out = name_errors(spec, robot, self.speed_limits, self.self_collision, self.obstacle_bodies)
         if self.gaze is not None and not robot.has_frame(self.gaze.frame):
             error = UnknownNameError("frame", self.gaze.frame, robot.frame_names)
             out.append(("gaze.frame", str(error)))
@@ -257,8 +245,9 @@ class PeerController(Controller):
     """The step both peers share; a peer supplies its library's model, targets and QP.
 
     A subclass sets ``name``, ``summary``, ``Config``, ``library`` and ``distribution``, and
-    implements :meth:`_setup`, :meth:`_update`, :meth:`_set_targets`, :meth:`_build` and
-    :meth:`_velocity`.
+    implements :meth:`_setup`, :meth:`_update`, :meth:`_set_targets`, :meth:`_extra_tasks` and
+    :meth:`_velocity`; its ``_setup`` makes the library's ``configuration``, ``tasks``,
+    ``contacts`` (held as constraints) and ``limits``.
     """
 
     kind = "velocity"
@@ -269,6 +258,11 @@ class PeerController(Controller):
     #: the module to import and the distribution that provides it
     library: ClassVar[str] = ""
     distribution: ClassVar[str] = ""
+    #: the library's objects, made by ``_setup``
+    configuration: Any
+    tasks: list[Any]
+    contacts: list[Any]
+    limits: list[Any]
 
     @classmethod
     def applies_to(cls, scenario: Scenario) -> str:
@@ -324,25 +318,36 @@ class PeerController(Controller):
 
     # -- what a peer supplies ----------------------------------------------------------------
 
+    @abstractmethod
     def _setup(self) -> None:
         """Build the library's model, tasks and limits (once)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _update(self, state: RobotState) -> None:
         """Run the library's kinematics at the state's configuration."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _set_targets(self, refs: list[Reference], gaze: GazeReference | None) -> None:
         """Set each library task's target one period ahead (and the CoM hold's, the gaze's)."""
-        raise NotImplementedError
 
-    def _build(self) -> Any:
-        """The library's QP of this tick (a ``qpsolvers.Problem``), from ``build_ik``."""
-        raise NotImplementedError
+    @abstractmethod
+    def _extra_tasks(self) -> list[Any]:
+        """The library tasks beside the scenario's (the CoM hold, the gaze), when configured."""
 
+    @abstractmethod
     def _velocity(self, delta_q: Array, state: RobotState) -> Array:
         """q̇ (n,) in Pinocchio's convention from the library's displacement over one period."""
-        raise NotImplementedError
+
+    def _build(self) -> Any:
+        """The library's QP of this tick (a ``qpsolvers.Problem``), from its ``build_ik``."""
+        return self.lib.build_ik(
+            self.configuration,
+            [*self.tasks, *self._extra_tasks()],
+            self.ctx.dt,
+            damping=self.config.damping,
+            limits=self.limits,
+            constraints=self.contacts,
+        )
 
     # -- environment and start --------------------------------------------------------------
 

@@ -227,20 +227,8 @@ class MinkIK(PeerController):
             scale = 1.0 if uncapped == 0.0 else float(np.linalg.norm(gaze.rate)) / uncapped
             self.look_at.gain = min(1.0, gaze.gain * dt * scale)
 
-    def _build(self) -> Any:
-        tasks = list(self.tasks)
-        if self.com_hold is not None:
-            tasks.append(self.com_hold)
-        if self.look_at is not None:
-            tasks.append(self.look_at)
-        return self.lib.build_ik(
-            self.configuration,
-            tasks,
-            self.ctx.dt,
-            damping=self.config.damping,
-            limits=self.limits,
-            constraints=self.contacts,
-        )
+    def _extra_tasks(self) -> list[Any]:
+        return [t for t in (self.com_hold, self.look_at) if t is not None]
 
     def _velocity(self, delta_q: Array, state: RobotState) -> Array:
         qvel = np.asarray(delta_q, dtype=float) / self.ctx.dt

@@ -183,20 +183,8 @@ class PinkIK(PeerController):
         vx, px = pin.skew(v), pin.skew(p)
         return np.asarray(px @ vx @ J6[3:] - vx @ J6[:3])
 
-    def _build(self) -> Any:
-        tasks = list(self.tasks)
-        if self.com_hold is not None:
-            tasks.append(self.com_hold)
-        if self.gaze_rows is not None:
-            tasks.append(self.gaze_rows)
-        return self.lib.build_ik(
-            self.configuration,
-            tasks,
-            self.ctx.dt,
-            damping=self.config.damping,
-            limits=self.limits,
-            constraints=self.contacts,
-        )
+    def _extra_tasks(self) -> list[Any]:
+        return [t for t in (self.com_hold, self.gaze_rows) if t is not None]
 
     def _velocity(self, delta_q: Array, state: RobotState) -> Array:
         return np.asarray(delta_q, dtype=float) / self.ctx.dt
