@@ -21,7 +21,7 @@ distribution and the entry point when its name is asked for, and is listed as br
 
 A script can add an entry for its own process (``wbcbench.register_controller``,
 ``register_solver``, ``register_robot``). The runs take such registrations along to the
-processes they run in (:func:`registrations`, :func:`call_with_registrations`), so a registered
+processes they run in (:func:`pickled_call`, :func:`run_pickled`), so a registered
 class must be importable by its module and name (not defined in ``__main__``), and a registered
 value (a robot's :class:`~wbcbench.robots.spec.RobotFile`) must pickle.
 """

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Literal
 
@@ -48,7 +48,6 @@ from wbcbench.scenarios.load import (
 from wbcbench.tasks.collision import Box
 
 __all__ = [
-    "RUNNERS",
     "Planner",
     "Run",
     "RunSettings",
@@ -58,7 +57,6 @@ __all__ = [
 ]
 
 Runner = Literal["closed_loop", "kinematic", "timing"]
-RUNNERS: tuple[str, ...] = ("closed_loop", "kinematic", "timing")
 
 
 @dataclass(frozen=True)
@@ -146,13 +144,6 @@ class Run:
         if use_environment is not None:
             use_environment(scenario_obstacles(self.scenario))
         return controller
-
-    def shortened(self, duration: float) -> Run:
-        """The same run of the scenario cut to ``duration`` [s] (e.g. to record a window)."""
-        loaded = load_scenario(
-            self.scenario.path, [*self.scenario.overrides, f"duration={duration:.6g}"]
-        )
-        return replace(self, scenario=loaded)
 
     def __getstate__(self) -> dict[str, Any]:
         state = {f.name: getattr(self, f.name) for f in fields(self)}
@@ -328,12 +319,13 @@ def plan_matrix(
     """
     planner = Planner()
     loaded = [planner.scenario(name, overrides)[0] for name in scenarios]
-    names = [default_solver() if s == "default" else s for s in solvers]
+    default = default_solver()
+    names = [default if s == "default" else s for s in solvers]
     notes: list[str] = []
     runs_of: dict[str, list[tuple[str, str, str]]] = {}
     for c in controllers:
         cls = controller_class(c)
-        if cls.own_solver and names != [default_solver()]:
+        if cls.own_solver and names != [default]:
             notes.append(f"{c} solves with its own {cls.own_solver}; the solvers do not apply")
         runs_of[c] = solver_runs(cls, [(s, tier, mode) for s in names], mode)
     runs: list[Run] = []

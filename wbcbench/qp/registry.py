@@ -143,13 +143,6 @@ def register_solver(cls: type[QPSolver], name: str = "", replace: bool = False) 
     plugins.register(GROUP, name, cls, replace)
 
 
-def solver_origins() -> tuple[dict[str, plugins.Origin], dict[str, str]]:
-    """The origin of every backend name that is not built in (registered, or a plugin's
-    distribution), and the plugin entries that do not load, with why."""
-    found, broken = plugins.external(GROUP, _check)
-    return {name: origin for name, (_, origin) in found.items()}, broken
-
-
 #: name → why its module did not import, for the entries whose library is installed (e.g.
 #: eiquadprog without the native module)
 _LOAD_ERRORS: dict[str, str] = {}
