@@ -131,6 +131,40 @@ class GazeSpec(BaseModel):
     speed_limit: float | None = Field(None, gt=0, description="cap on ‖λ (v × p)‖ [m/s]")
 
 
+def velocity_bounds(limit: float | None, robot: Robot) -> Array:
+    """The joints' velocity bounds (k,) [rad/s]: one ``limit`` for all, else the model's."""
+    if limit is not None:
+        return np.full(robot.k, limit)
+    return np.asarray(robot.v_max, dtype=float)
+
+
+def gaze_task(spec: GazeSpec | None, robot: Robot) -> GazeTask | None:
+    """The gaze row the settings ask for (None without one); an unknown frame fails here."""
+    if spec is None:
+        return None
+    robot.frame_id(spec.frame)
+    return GazeTask(
+        name=spec.name,
+        priority=spec.priority,
+        kp=spec.gain,
+        frame=spec.frame,
+        axis="xyz".index(spec.axis),
+        target=np.asarray(spec.target, dtype=float),
+    )
+
+
+def collision_bodies(
+    self_collision: list[tuple[str, str]] | None,
+    obstacle_bodies: list[str] | None,
+    robot: Robot,
+) -> tuple[list[tuple[str, str]], list[str]]:
+    """The capsule pairs checked against each other and the bodies checked against obstacles:
+    the settings', else the robot's defaults."""
+    pairs = self_collision if self_collision is not None else default_self_pairs(robot.name)
+    bodies = obstacle_bodies if obstacle_bodies is not None else default_obstacle_bodies(robot.name)
+    return pairs, bodies
+
+
 def name_errors(
     spec: Scenario,
     robot: Robot,
@@ -331,31 +365,10 @@ class KinHqp(NativeController):
             raise WbcBenchError("kin_hqp: base 'support_foot' needs at least one contact")
         if cfg.com == "polygon" and cfg.inequalities and not ctx.contacts:
             raise WbcBenchError("kin_hqp: com 'polygon' needs contacts (or com: free)")
-        k = robot.k
-        self.v_max = (
-            np.full(k, cfg.velocity_limit)
-            if cfg.velocity_limit is not None
-            else np.asarray(robot.v_max, dtype=float)
-        )
-        self.gaze: GazeTask | None = None
-        if cfg.gaze is not None:
-            g = cfg.gaze
-            robot.frame_id(g.frame)  # fail early on an unknown frame
-            self.gaze = GazeTask(
-                name=g.name,
-                priority=g.priority,
-                kp=g.gain,
-                frame=g.frame,
-                axis="xyz".index(g.axis),
-                target=np.asarray(g.target, dtype=float),
-            )
-        self._pairs = (
-            cfg.self_collision if cfg.self_collision is not None else default_self_pairs(robot.name)
-        )
-        self._obstacle_bodies = (
-            cfg.obstacle_bodies
-            if cfg.obstacle_bodies is not None
-            else default_obstacle_bodies(robot.name)
+        self.v_max = velocity_bounds(cfg.velocity_limit, robot)
+        self.gaze = gaze_task(cfg.gaze, robot)
+        self._pairs, self._obstacle_bodies = collision_bodies(
+            cfg.self_collision, cfg.obstacle_bodies, robot
         )
         self.collision = CollisionModel(robot, self._pairs)
         self._com0 = np.zeros(2)

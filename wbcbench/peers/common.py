@@ -83,10 +83,10 @@ from wbcbench.controllers.base import (
 )
 from wbcbench.controllers.kin_hqp import (
     GazeSpec,
-    GazeTask,
-    default_obstacle_bodies,
-    default_self_pairs,
+    collision_bodies,
+    gaze_task,
     name_errors,
+    velocity_bounds,
 )
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError, UnknownNameError
@@ -286,30 +286,10 @@ class PeerController(Controller):
         for task in ctx.tasks:
             if isinstance(task, JointDampingTask):
                 raise ControllerError(f"{self.name}: task {task.name!r}: joint_damping")
-        self.v_max = (
-            np.full(robot.k, cfg.velocity_limit)
-            if cfg.velocity_limit is not None
-            else np.asarray(robot.v_max, dtype=float)
-        )
-        self.gaze: GazeTask | None = None
-        if cfg.gaze is not None:
-            g = cfg.gaze
-            robot.frame_id(g.frame)
-            self.gaze = GazeTask(
-                name=g.name,
-                priority=g.priority,
-                kp=g.gain,
-                frame=g.frame,
-                axis="xyz".index(g.axis),
-                target=np.asarray(g.target, dtype=float),
-            )
-        self._pairs = (
-            cfg.self_collision if cfg.self_collision is not None else default_self_pairs(robot.name)
-        )
-        self._obstacle_bodies = (
-            cfg.obstacle_bodies
-            if cfg.obstacle_bodies is not None
-            else default_obstacle_bodies(robot.name)
+        self.v_max = velocity_bounds(cfg.velocity_limit, robot)
+        self.gaze = gaze_task(cfg.gaze, robot)
+        self._pairs, self._obstacle_bodies = collision_bodies(
+            cfg.self_collision, cfg.obstacle_bodies, robot
         )
         self.obstacles: list[Box] = []
         self.collision = CollisionModel(robot, self._pairs)
@@ -440,18 +420,6 @@ class PeerController(Controller):
         if distances.size:
             diag["min_distance"] = float(distances.min())
         empty = np.zeros(0)
-        if not found:
-            return ControlOutput(
-                tau=empty,
-                qdd=empty,
-                wrench=empty,
-                terms=terms,
-                timings=timings,
-                qd=qd,
-                ok=False,
-                message=f"{self.name}: {self.config.solver} found no solution of the IK QP",
-                diagnostics=diag,
-            )
         return ControlOutput(
             tau=empty,
             qdd=empty,
@@ -459,6 +427,10 @@ class PeerController(Controller):
             terms=terms,
             timings=timings,
             qd=qd,
+            ok=found,
+            message=""
+            if found
+            else f"{self.name}: {self.config.solver} found no solution of the IK QP",
             diagnostics=diag,
         )
 
