@@ -425,6 +425,7 @@ def peers_figure(res: Results, out: Path) -> list[Path]:
     scenarios = list(dict.fromkeys(f["scenario"]))
     series = [(c, "python") for c in PEER_COLORS] + [("kin_hqp", "native")]
     width = 0.8 / len(series)
+    timed = False
     for k, (controller, impl) in enumerate(series):
         rows = f[f["controller"] == controller].set_index("scenario").reindex(scenarios)
         median = rows.get(f"t median {impl} [µs]")
@@ -443,13 +444,17 @@ def peers_figure(res: Results, out: Path) -> list[Path]:
         )
         if p99 is not None:
             ax.plot(x, p99, "v", color="k", ms=4)
+        timed = True
+    if not timed:
+        ax.text(0.5, 0.5, "no runs", ha="center", va="center", transform=ax.transAxes)
     ax.set_xticks(np.arange(len(scenarios)))
     ax.set_xticklabels([s.replace("_kinematic", "\n(kinematic)") for s in scenarios], fontsize=7)
     ax.set_yscale("log")
     ax.set_ylabel("time per tick [µs] (bar: median, ▼: p99)")
     ax.set_title("Replay of the same recorded states", fontsize=9)
     ax.grid(alpha=0.3, axis="y", which="both")
-    ax.legend(fontsize=7)
+    if timed:
+        ax.legend(fontsize=7)
     fig.suptitle(
         "Velocity-level peers: kin_hqp (strict levels) beside pink and mink (one weighted QP)",
         fontsize=10,
