@@ -364,3 +364,26 @@ def test_qpoases_libdwbc_falls_back_to_a_reliable_init() -> None:
     assert (status, rebuilt, cpp.last_call) == ("infeasible", True, "reinit")
     fill(buf, seq[16])
     assert cpp.solve(buf)[0] == "solved" and cpp.last_call == "init"
+
+
+@needs_qpoases_libdwbc
+def test_osf_hqp_asks_for_a_wrench_handle_for_its_final_qp() -> None:
+    """The QP kind picks libdwbc's options: osf_hqp's levels are task QPs (setToMPC), its final
+    contact-wrench QP is the wrench kind (setToReliable); an unknown kind is refused."""
+    from wbcbench.controllers.registry import make_controller
+    from wbcbench.robots.loader import load_robot
+    from wbcbench.runs import scenario_context
+    from wbcbench.scenarios.load import load_scenario
+
+    loaded = load_scenario("libdwbc_osf_cycle")
+    ctx = scenario_context(
+        loaded, load_robot(loaded.spec.robot), solver="qpoases_libdwbc", mode="hot"
+    )
+    controller: Any = make_controller("osf_hqp", ctx, {"impl": "native"})
+    assert [h.qp_kind for h in controller.solvers] == ["task", "task"]
+    assert controller.final_solver.qp_kind == "wrench"
+    assert controller.final_solver.native_solver().settings() == pytest.approx(
+        {**controller.solvers[0].native_solver().settings(), **RELIABLE}
+    )
+    with pytest.raises(ValueError, match="unknown QP kind 'nope'; valid choices: task, wrench"):
+        ctx.new_solver("nope")
