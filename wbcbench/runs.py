@@ -162,8 +162,8 @@ class WrappingContext(ControllerContext):
 
     wrap: Callable[[Any], Any] | None = None
 
-    def new_solver(self) -> Any:
-        handle = super().new_solver()
+    def new_solver(self, kind: str = "task") -> Any:
+        handle = super().new_solver(kind)
         return self.wrap(handle) if self.wrap is not None else handle
 
 

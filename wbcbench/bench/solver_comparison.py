@@ -8,7 +8,7 @@ accuracy tier and mode:
 * ``warm`` / ``hot``: one handle per sequence of the same QP (same controller and QP index) over
   consecutive ticks, so the second tick on starts from the first's solution or object.
 
-A named setting (``osqp_libdwbc``) runs at its own tier and mode only.
+A named setting (``osqp_libdwbc``, ``qpoases_libdwbc``) runs at its own tier and mode only.
 
 Each solve is one row of ``qp_solves.csv`` (appended as it finishes; a rerun skips the rows it
 has): the reported status, whether the solution is *valid* — checked independently of the status

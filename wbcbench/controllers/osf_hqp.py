@@ -64,7 +64,7 @@ class OsfHqp(OsfControllerBase):
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
         self.solvers = [ctx.new_solver() for _ in self.levels]
-        self.final_solver = ctx.new_solver()
+        self.final_solver = ctx.new_solver("wrench")
         Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
         self.WtW = Wc.T @ Wc
         #: how many of the native tick's QPs the last tick reached
