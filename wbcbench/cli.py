@@ -372,7 +372,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from wbcbench.report.compare import markdown
 
-    text = markdown(_results_dir(args.before), _results_dir(args.after))
+    ignore = [k.strip() for item in args.ignore or [] for k in item.split(",") if k.strip()]
+    text = markdown(_results_dir(args.before), _results_dir(args.after), ignore)
     print(text)
     if args.out:
         Path(args.out).write_text(text)
@@ -532,6 +533,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("before", metavar="A", help="the results folder before the change")
     p.add_argument("after", metavar="B", help="the results folder after the change")
     p.add_argument("--out", metavar="FILE.md", help="also write the comparison to this file")
+    p.add_argument(
+        "--ignore",
+        action="append",
+        metavar="KEY",
+        help="match runs that differ only in this key (repeatable, or comma-separated): "
+        "scenario, robot, controller, controller_config, solver, tier, mode, impl, duration, "
+        "ticks, recorder, overrides, settings",
+    )
     p.set_defaults(func=_cmd_compare)
 
     p = sub.add_parser("replay", help="solve a dumped QP (.npz) again with one or more solvers")
