@@ -251,8 +251,12 @@ def _s4(res: Results) -> list[Outcome]:
     if runs.empty:
         return []
     rows = [r for _, r in runs.iterrows()]
-    qp = max((E.median(res, r, "solve") for r in rows), key=lambda e: e.value)
-    params = max((E.median(res, r, "params") for r in rows), key=lambda e: e.value)
+
+    def slowest(stage: str) -> Estimate:
+        found = [e for e in (E.median(res, r, stage) for r in rows) if e.finite]
+        return max(found, key=lambda e: e.value) if found else E.NAN
+
+    qp, params = slowest("solve"), slowest("params")
     busy = E.busy(rows)
     vq, why_q = judge_bound(qp, 500.0, busy)
     vp, why_p = judge_bound(params, 2000.0, busy)
