@@ -6,9 +6,10 @@ lies outside the noise.
   and B / A; significant when the two medians' 95 % confidence intervals
   (:func:`~wbcbench.metrics.timing.median_ci`) do not overlap. Folders measured before the
   intervals were recorded compare without a verdict (``n/a``).
-* **Tracking rows**: each task's mean error (``err_mean``) and the status; a change counts when
+* **Tracking rows**: each task's mean error (``err_mean``) and the status; ``error changed`` when
   the relative difference exceeds 1e-9 (closed-loop runs are deterministic for every backend
-  but ProxQP, whose README-stated spread is up to 1e-4) or the status differs.
+  but ProxQP, whose README-stated spread is up to 1e-4); a status that differs is its own change
+  (``status ok → fell``).
 
 Rows are matched on :data:`KEYS`: what ran (kind, scenario, robot, controller and its config,
 solver, tier, mode, impl) and how (the run's settings, split into ``duration``, ``ticks``,
@@ -198,7 +199,7 @@ def _tracking_change(r: pd.Series) -> str:
         return "same"
     if abs(eb - ea) <= SAME * max(1.0, abs(ea), abs(eb)):
         return "same"
-    return "changed"
+    return "error changed"
 
 
 def compare(
@@ -247,7 +248,7 @@ def summary(a: str | Path, b: str | Path, ignore: Sequence[str] = ()) -> dict[st
     timing, tracking = compare(a, b, ignored)
     per_run = [timing[[*keys, "change"]]]
     if len(tracking):
-        rank = {"only in A": 0, "only in B": 0, "same": 1, "changed": 3}
+        rank = {"only in A": 0, "only in B": 0, "same": 1, "error changed": 3}
         worst = tracking.assign(_rank=[rank.get(c, 4) for c in tracking["change"]])
         worst = worst.sort_values("_rank").drop_duplicates(keys, keep="last")
         per_run.append(worst[[*keys, "change"]])
