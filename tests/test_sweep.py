@@ -521,9 +521,12 @@ def test_a_hung_solver_comparison_does_not_hang_the_sweep(
 def test_a_timing_row_records_what_the_machine_was_doing(tmp_path: Path) -> None:
     text = TINY.format(tracking_solvers="daqp", timing_solvers="daqp")
     text = "version: 1\n" + text[text.index("timing:") :]
-    run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
+    report = run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
     row = pd.read_csv(tmp_path / "out" / "runs.csv").iloc[0]
     conditions = json.loads(row["settings"])["conditions"]
+    # the sweep's report counts the timing rows and keeps the busy ones' conditions, for one
+    # line at the end instead of one per row
+    assert report.timed == 1 and report.busy == ([conditions] if conditions["busy"] else [])
     assert {
         "load_1min",
         "load_per_core",

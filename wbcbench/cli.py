@@ -214,6 +214,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0 if (table["status"] == "ok").all() else 1
 
 
+def _print_suspects(out: Path) -> None:
+    """Say which runs of ``out`` ended ok with a suspect task error (summary.md lists them)."""
+    from wbcbench.bench.results import ResultsStore
+    from wbcbench.report.summary import SUSPECT_FACTOR, suspect_lines, suspects
+
+    store = ResultsStore(out)
+    odd = suspects(store.runs(), store.metrics())
+    if len(odd):
+        print(
+            f"suspect: {len(odd)} runs ended ok with a task error over {SUSPECT_FACTOR:g}× "
+            "their scenario's usual one"
+        )
+        for line in suspect_lines(odd):
+            print(line)
+
+
 def _run_plan(plan, args: argparse.Namespace, out: Path, bench: bool = False) -> int:
     """Run a plan and print what it did; the exit status: 1 when a planned row is ``failed``
     or ``error`` (for ``bench``, only ``error``), else 0."""
@@ -235,6 +251,9 @@ def _run_plan(plan, args: argparse.Namespace, out: Path, bench: bool = False) ->
         rerun="all" if args.force else "failed" if args.retry_failed else "none",
     )
     print(f"{report.computed} rows computed, {report.resumed} already in {out} (resumed)")
+    if report.busy_line():
+        print(report.busy_line(), file=sys.stderr)
+    _print_suspects(out)
     for line in report.failed[:5]:
         print(f"  failed: {line}")
     if len(report.failed) > 5:
@@ -277,26 +296,16 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def write_reports(out: Path) -> None:
-    """Summary, paper tables, solver report and figures of a results folder."""
+    """Paper tables, summary, solver report and figures of a results folder."""
     from wbcbench.bench.results import ResultsStore
     from wbcbench.report.plots import write_plots
     from wbcbench.report.solvers import write_report
+    from wbcbench.report.summary import write_summary
     from wbcbench.report.tables import write_tables
 
     store = ResultsStore(out)
-    runs = store.runs()
-    table = summary_table(runs[runs["kind"] == "tracking"], store.metrics())
-    summary = out / "summary.md"
-    summary.write_text(
-        "# wbcbench results\n\n"
-        "Closed-loop runs: one row per scenario × controller × solver. Errors are the mean "
-        "tracking-error norms over each scenario's metric window; times are medians over the run "
-        "in microseconds (see provenance.json for the machine). Open-loop timing: "
-        "`tables/papers.md`; solvers: `solver_report.md`; figures: `figures/`.\n\n"
-        + (table.to_markdown(index=False, floatfmt=".4g") if not table.empty else "(no runs)")
-        + "\n"
-    )
     print(f"tables: {write_tables(out)}")
+    print(f"summary: {write_summary(out, store.runs(), store.metrics())}")
     print(f"solver report: {write_report(out)}")
     print(f"figures: {len(write_plots(out))} files in {out / 'figures'}")
 
@@ -372,7 +381,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from wbcbench.report.compare import markdown
 
-    text = markdown(_results_dir(args.before), _results_dir(args.after))
+    ignore = [k.strip() for item in args.ignore or [] for k in item.split(",") if k.strip()]
+    text = markdown(_results_dir(args.before), _results_dir(args.after), ignore)
     print(text)
     if args.out:
         Path(args.out).write_text(text)
@@ -532,6 +542,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("before", metavar="A", help="the results folder before the change")
     p.add_argument("after", metavar="B", help="the results folder after the change")
     p.add_argument("--out", metavar="FILE.md", help="also write the comparison to this file")
+    p.add_argument(
+        "--ignore",
+        action="append",
+        metavar="KEY",
+        help="match runs that differ only in this key (repeatable, or comma-separated): "
+        "scenario, robot, controller, controller_config, solver, tier, mode, impl, duration, "
+        "ticks, recorder, overrides, settings",
+    )
     p.set_defaults(func=_cmd_compare)
 
     p = sub.add_parser("replay", help="solve a dumped QP (.npz) again with one or more solvers")

@@ -32,6 +32,7 @@ jobs; :func:`run_sweep` runs them. Every error names the sweep file and the key 
 from __future__ import annotations
 
 import fnmatch
+import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +42,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from wbcbench.bench.checks import CHECK_FACTOR
+from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE
 from wbcbench.errors import ScenarioError, UnknownNameError, WbcBenchError
 from wbcbench.qp.registry import default_solver
 from wbcbench.runs import Planner, Run, RunSettings, solver_runs
@@ -725,6 +727,22 @@ class SweepReport:
     resumed: int = 0
     failed: list[str] = field(default_factory=list)
     not_ok: dict[str, int] = field(default_factory=dict)
+    #: timing rows computed now: how many, and the machine conditions of those timed busy
+    timed: int = 0
+    busy: list[dict[str, Any]] = field(default_factory=list)
+
+    def busy_line(self) -> str:
+        """One line for every timing row timed on a busy machine, with the worst load (or "")."""
+        if not self.busy:
+            return ""
+        worst = max(self.busy, key=lambda c: float(c.get("load_1min", 0.0)))
+        return (
+            f"warning: {len(self.busy)} of {self.timed} timing rows were timed on a busy machine "
+            f"(worst: load {worst.get('load_1min', float('nan')):g}, other work "
+            f"{worst.get('other_load_per_core', float('nan')):g} per core, above "
+            f"{BUSY_LOAD_PER_CORE:g}): compare their times only within this run; the paper "
+            "verdicts resting on them say inconclusive"
+        )
 
 
 def run_sweep(
@@ -791,6 +809,11 @@ def run_sweep(
         report.computed += 1
         budget[0] -= 1
         row = record.row
+        if row.get("kind") == "timing" and row["status"] != "skipped":
+            report.timed += 1
+            conditions = _conditions(row)
+            if conditions.get("busy"):
+                report.busy.append(conditions)
         if row["status"] in NOT_OK:
             report.failed.append(f"{job.label}: {row['status']}: {row.get('message', '')}")
         if on_row is not None:
@@ -839,6 +862,15 @@ def run_sweep(
         _guarded("hls scaling", run_hls_scaling, scaling, HLS_WALL_LIMIT_S, store.folder)
         store.refresh_mirror()  # (its rows were appended by the child)
     return report
+
+
+def _conditions(row: dict[str, Any]) -> dict[str, Any]:
+    """The machine conditions a timing row recorded (``settings.conditions``), or {}."""
+    try:
+        conditions = json.loads(str(row.get("settings") or "{}")).get("conditions")
+    except (ValueError, AttributeError):
+        return {}
+    return conditions if isinstance(conditions, dict) else {}
 
 
 #: wall-clock guard of the hierarchy scaling study [s] (dense linear algebra only: minutes)

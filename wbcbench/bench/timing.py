@@ -19,7 +19,6 @@ solved but …``.
 from __future__ import annotations
 
 import json
-import sys
 import time
 import traceback
 from pathlib import Path
@@ -28,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from wbcbench.bench.checks import SolverCapture, check_reported
-from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE, machine_conditions
+from wbcbench.bench.provenance import machine_conditions
 from wbcbench.bench.runner import RunRecord, base_row, ended_record
 from wbcbench.bench.sweep import HlsScalingSpec, Job
 from wbcbench.errors import WbcBenchError
@@ -187,13 +186,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
         row["settings"] = json.dumps(
             {**json.loads(row["settings"]), "conditions": conditions}, sort_keys=True
         )
-        if before["busy"]:
-            print(
-                f"warning: {job.label}: timed at load {before['load_1min']:g}, other work "
-                f"{before['other_load_per_core']:g} per core (above {BUSY_LOAD_PER_CORE:g}): the "
-                "machine was busy; compare its times only within this run",
-                file=sys.stderr,
-            )
+        # a busy machine is said once per sweep (SweepReport.busy_line), not per row
         warmup = min(int(opts["warmup"]), max(0, len(rec) - 1))
         for m in timing_metrics(timings.stages, warmup):
             metrics.append(dict(run_id=rid, **base, **m))

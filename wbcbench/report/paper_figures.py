@@ -246,7 +246,7 @@ def rc_lqp_dof(t: PaperTable, out: Path) -> list[Path]:
         [1.0 / r for _, r in measured],
         "^--",
         color="#ff7f0e",
-        label="authors' C++ (libdwbc), this machine",
+        label=f"authors' C++ (libdwbc), once on a {P.RC_LQP_DOF_LIBDWBC_MEASURED}",
     )
     gain.axhline(1.0, color="k", lw=0.8)
     gain.set_xlabel("DoF")

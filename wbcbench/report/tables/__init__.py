@@ -106,7 +106,7 @@ def write_tables(folder: str | Path) -> Path:
     ]
     from wbcbench.report.verdicts import markdown, verdicts
 
-    verdict_frame = verdicts(tables)
+    verdict_frame = verdicts(tables, res)
     verdict_frame.to_csv(out / "verdicts.csv", index=False)
     (out / "verdicts.md").write_text(markdown(verdict_frame))
     parts.append(markdown(verdict_frame))
