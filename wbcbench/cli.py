@@ -342,6 +342,7 @@ def _cmd_tables(args: argparse.Namespace) -> int:
 
     path = write_tables(_results_dir(args.results))
     print(path.read_text() if args.print else f"tables in {path.parent}/")
+    print(f"recommendations: {path.parents[1] / 'recommendations.md'}")
     return 0
 
 
