@@ -89,7 +89,8 @@ def solver_conclusion(summary: pd.DataFrame) -> str:
     if perfect.empty:
         best = per.sort_values("valid", ascending=False).iloc[0]
         lines.append(
-            f"No backend is valid on every QP at the default tier; the best reaches {best['valid']:.1f} %."
+            "No backend is valid on every QP at the default tier; the best reaches "
+            f"{best['valid']:.1f} %."
         )
     else:
         fastest = perfect.iloc[0]
