@@ -1,6 +1,6 @@
 """Timing runs: every controller × solver replays exactly the same recorded states.
 
-Protocol (docs/timing.md): the states of one closed-loop run per scenario are recorded once and cached
+Protocol (docs/timing.md): states of one closed-loop run per scenario are recorded once and cached
 next to the results (``recordings/<scenario>-<hash>-<recorder>-<end>.npz``; when the planned
 recorder falls or fails inside the window, the next of the matrix's ``record_with`` that applies
 records it, and the rows name the recorder they replayed); each controller ×

@@ -46,7 +46,9 @@ MAX_POINTS = 800  # per line: keeps the SVG files small
 
 
 def _save(fig: Any, out: Path, name: str) -> list[Path]:
-    fig.tight_layout()
+    # leave the suptitle its own band (tight_layout alone lets the top axes' labels reach it)
+    top = 1.0 - 0.32 / fig.get_figheight() if getattr(fig, "_suptitle", None) else 1.0
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, top))
     paths = [out / f"{name}.png", out / f"{name}.svg"]
     for p in paths:
         fig.savefig(p, dpi=110)
@@ -130,7 +132,11 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
         logs = [(r, lg) for r, lg in logs if not lg.empty]
         if not logs:
             continue
-        labels = _labels([row for row, _ in logs])
+        # a run that fell or failed says so in its label
+        labels = [
+            label if row["status"] == "ok" else f"{label} — {row['status']}"
+            for label, (row, _) in zip(_labels([row for row, _ in logs]), logs, strict=True)
+        ]
         err_cols = sorted({c for _, lg in logs for c in lg.columns if c.startswith("err.")})
         window, window_note = _window_in_data(_window(res, str(scenario)), [lg for _, lg in logs])
         if err_cols:
@@ -173,7 +179,8 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
             ax.set_xlabel("time [s]")
             ax.set_ylabel("‖ẍ_opt − ẍ*‖ [m/s² or rad/s²] (log)")
             ax.set_yscale("log")  # a fall's spike does not flatten the rest
-            ax.set_title(f"Task-acceleration amendments — {scenario}", fontsize=10)
+            note = f" ({window_note})" if window_note else ""
+            ax.set_title(f"Task-acceleration amendments — {scenario}{note}", fontsize=9)
             ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
             ax.grid(alpha=0.3, which="both")
             _shade(ax, window)
