@@ -295,8 +295,17 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return _run_plan(plan, args, Path(args.out))
 
 
+def _files_backend() -> None:
+    """Figures are written to files: matplotlib's Agg backend, chosen here and not at the
+    report modules' import, so that a notebook importing them keeps its inline plots."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+
 def write_reports(out: Path) -> None:
     """Paper tables, summary, solver report and figures of a results folder."""
+    _files_backend()
     from wbcbench.bench.results import ResultsStore
     from wbcbench.report.plots import write_plots
     from wbcbench.report.solvers import write_report
@@ -342,10 +351,12 @@ def _cmd_tables(args: argparse.Namespace) -> int:
 
     path = write_tables(_results_dir(args.results))
     print(path.read_text() if args.print else f"tables in {path.parent}/")
+    print(f"recommendations: {path.parents[1] / 'recommendations.md'}")
     return 0
 
 
 def _cmd_plots(args: argparse.Namespace) -> int:
+    _files_backend()
     from wbcbench.report.plots import write_plots
 
     paths = write_plots(_results_dir(args.results))

@@ -6,7 +6,10 @@ accuracy tier and mode:
 
 * ``cold``: a fresh handle per problem;
 * ``warm`` / ``hot``: one handle per sequence of the same QP (same controller and QP index) over
-  consecutive ticks, so the second tick on starts from the first's solution or object.
+  consecutive ticks, each tick starting from the previous one's solution or solver object. The
+  handle first solves, unrecorded, the same QP of the tick before the sequence (its *primer*,
+  ``prime-t<tick>-<k>.npz``), so that the first recorded solve starts warm or hot as the
+  controller's did; a folder dumped without primers starts its sequences cold.
 
 A named setting (``osqp_libdwbc``, ``qpoases_libdwbc``) runs at its own tier and mode only.
 
@@ -83,6 +86,14 @@ def problem_sequences(folder: str | Path) -> list[list[Path]]:
         index = path.stem.split("-")[-1]
         groups.setdefault((str(path.parent), index), []).append(path)
     return [sorted(paths) for _, paths in sorted(groups.items())]
+
+
+def primer_of(path: Path) -> Path | None:
+    """The QP of the tick before ``path``'s sequence, solved first to prime a warm or hot
+    handle (see :func:`wbcbench.bench.timing.dump_problems`); None when it was not dumped."""
+    index = path.stem.split("-")[-1]
+    found = sorted(path.parent.glob(f"prime-t*-{index}.npz"))
+    return found[-1] if found else None
 
 
 def file_key(path: Path) -> str:
@@ -223,6 +234,9 @@ def compare_on_problems(
                         continue
                     if handle is None or mode == "cold":
                         handle = make_solver(solver, tier=tier, mode=mode)
+                        primer = primer_of(path) if mode != "cold" else None
+                        if primer is not None:
+                            handle.solve(Problem.load(primer))  # unrecorded: the tick before
                     if path not in refs:
                         refs[path] = reference_solution(problem, reference_solver)
                     ref, ref_ok = refs[path]

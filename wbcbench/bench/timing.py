@@ -1,6 +1,6 @@
 """Timing runs: every controller × solver replays exactly the same recorded states.
 
-Protocol (DESIGN §7): the states of one closed-loop run per scenario are recorded once and cached
+Protocol (docs/timing.md): states of one closed-loop run per scenario are recorded once and cached
 next to the results (``recordings/<scenario>-<hash>-<recorder>-<end>.npz``; when the planned
 recorder falls or fails inside the window, the next of the matrix's ``record_with`` that applies
 records it, and the rows name the recorder they replayed); each controller ×
@@ -232,8 +232,11 @@ def dump_problems(
     """Save the QPs of ``ticks`` consecutive replayed steps of ``run`` (after ``after`` ticks)
     as .npz.
 
-    Files go to ``problems/<scenario>-<hash>/<controller>/t<tick>-<k>.npz``; an existing folder
-    is reused as is. Returns the files in tick order.
+    Files go to ``problems/<scenario>-<hash>/<controller>/t<tick>-<k>.npz``, and the QPs of the
+    tick before the first as ``prime-t<tick>-<k>.npz``: the solver comparison solves those first,
+    unrecorded, so that a warm or hot sequence starts from the previous tick's solution or
+    solver object as the controller's handle did, not cold. An existing folder is reused as is.
+    Returns the recorded files (not the primers) in tick order.
     """
     loaded, controller = run.scenario, run.controller
     target = Path(folder) / "problems" / f"{loaded.name}-{loaded.hash}" / controller
@@ -250,8 +253,9 @@ def dump_problems(
     def keep(i: int, out: Any) -> str:
         captured = [problem for problem, _ in pairs]
         pairs.clear()
-        if i < after:
+        if i < after - 1:
             return ""
+        primer = i == after - 1
         for k, problem in enumerate(captured):
             problem.meta = {
                 **problem.meta,
@@ -260,10 +264,12 @@ def dump_problems(
                 "controller": controller,
                 "tick": i,
                 "index": k,
+                **({"primer": True} if primer else {}),
             }
-            path = target / f"t{i:05d}-{k:02d}.npz"
+            path = target / f"{'prime-' if primer else ''}t{i:05d}-{k:02d}.npz"
             problem.save(path)
-            saved.append(path)
+            if not primer:
+                saved.append(path)
         return ""
 
     replay(run, rec, on_step=keep, wrap_solver=lambda handle: SolverCapture(handle, pairs))

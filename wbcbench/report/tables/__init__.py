@@ -118,6 +118,9 @@ def write_tables(folder: str | Path) -> Path:
         parts.append(md)
     path = out / "papers.md"
     path.write_text("\n".join(parts))
+    from wbcbench.report.recommend import write_recommendations
+
+    write_recommendations(folder, res)
     (out / "index.json").write_text(
         json.dumps(
             {t.name: {"title": t.title, "has_results": t.frame is not None} for t in tables},

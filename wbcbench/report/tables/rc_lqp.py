@@ -241,7 +241,9 @@ def rc_lqp_dof(res: Results) -> PaperTable:
     t.frame = frame
     t.notes += [
         "Ratios: conventional (lqp) / proposed (rc_lqp). Ours: medians of the replayed ticks "
-        "(whole step), the paper's solver (OSQP) when timed.",
+        "(whole step); solver: {} ({}, {}), the paper's (OSQP) when it was timed.".format(
+            *runs.iloc[0][["solver", "tier", "mode"]]
+        ),
         "The paper's text gives the 20 and 45 DoF end points (Fig. 5).",
         _machines(res, "rc_lqp"),
         f"Source: {P.RC_LQP_DOF_SOURCE}.",
