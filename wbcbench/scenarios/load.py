@@ -35,6 +35,7 @@ SCENARIO_DIR = Path(__file__).resolve().parents[2] / "scenarios"
 # at them, so that stored results keep matching their scenarios.
 _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("package_dirs",), []),
+    (("frames",), {}),
     (("initial", "joints"), None),
     (("initial", "srdf"), None),
     (("initial", "state"), None),
@@ -431,11 +432,15 @@ def _check_reference_dim(file: str, i: int, task: TaskSpec) -> None:
 
 def load_scenario_robot(loaded: LoadedScenario) -> Any:
     """The scenario's robot; a robot that cannot be loaded is an error at the key ``robot``."""
-    from wbcbench.robots.loader import load_robot
+    from wbcbench.robots.loader import ExtraFrame, load_robot
 
+    frames = tuple(ExtraFrame(name, f.body, f.pos, f.rpy) for name, f in loaded.spec.frames.items())
     try:
         return load_robot(
-            loaded.spec.robot, base_dir=loaded.path.parent, package_dirs=loaded.spec.package_dirs
+            loaded.spec.robot,
+            base_dir=loaded.path.parent,
+            package_dirs=loaded.spec.package_dirs,
+            frames=frames,
         )
     except ScenarioError:
         raise
