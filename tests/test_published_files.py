@@ -16,11 +16,11 @@ import pinocchio as pin
 import pytest
 
 from wbcbench.cli import main
-from wbcbench.errors import ModelError
+from wbcbench.errors import ModelError, ScenarioError
 from wbcbench.robots.loader import ExtraFrame, load_robot
 from wbcbench.robots.parity import PARITY_TOLERANCE, model_parity
 from wbcbench.runs import plan_run
-from wbcbench.scenarios.load import load_scenario
+from wbcbench.scenarios.load import load_scenario, load_scenario_robot
 from wbcbench.scenarios.preflight import contact_rank, sole_placements
 from wbcbench.sim.closed_loop import run_closed_loop
 
@@ -317,3 +317,26 @@ def test_validate_into_a_closed_pipe_ends_quietly() -> None:
     err = child.stderr.read().decode()
     assert child.wait(timeout=300) == 141
     assert err == ""
+
+
+def test_scenario_frames_hold_the_contacts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Sole planes given as a body plus an offset: the same soles as the file's sites."""
+    robot_file, _ = write_pair(tmp_path)
+    path = write_scenario(tmp_path, robot_file, "mini_frames")
+    frames = "".join(f"  {s}_plane: {{body: {s}_foot, pos: [0.02, 0, -0.04]}}\n" for s in "lr")
+    text = path.read_text().replace("frame: l_sole", "frame: l_plane")
+    text = text.replace("frame: r_sole", "frame: r_plane")
+    path.write_text(text.replace("initial:", f"frames:\n{frames}initial:"))
+    assert main(["validate", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "warning" not in out, out
+    robot = load_scenario_robot(load_scenario(path))
+    assert robot.has_frame("l_plane") and robot.has_frame("l_sole")
+    path.write_text(path.read_text().replace("body: l_foot", "body: l_fot"))
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario_robot(load_scenario(path))
+    assert str(exc.value).startswith(
+        f"{path}: frames.l_plane.body: unknown body 'l_fot'; valid choices: Waist, l_ankle, "
+    )
