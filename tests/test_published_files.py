@@ -162,9 +162,9 @@ def test_scene_including_the_robot_is_one_robot_as_simulated(tmp_path: Path) -> 
         "the file's actuators (13 position/velocity servos) were replaced by one torque motor per "
         "joint (13): the controllers command joint torques; a servo's forcerange became the "
         "joint's torque limit where the joint states none",
-        "2 bodies (l_thigh3, r_thigh3) have inertias that break A + B >= C; MuJoCo balanced them "
-        "(the file sets balanceinertia) and the controllers' model uses the same balanced "
-        "values; fix those <inertial>s to keep the file's",
+        "inertias that break A + B >= C in 2 of the file's bodies (l_thigh3, r_thigh3): MuJoCo "
+        "balanced them (the file sets balanceinertia) and the controllers' model uses the same "
+        "balanced values; fix those <inertial>s to keep the file's",
         "'Waist' names both a joint and a body: as a frame (tasks[].frame, contacts[].frame) it "
         "means the body, as a joint (joint_posture, initial.joints) the joint",
     )
@@ -215,7 +215,7 @@ def test_validate_names_a_tilted_sole_and_a_foot_that_cannot_touch(
     out = capsys.readouterr().out
     assert (
         "    warning: contacts[0] ('l_sole'): the foot cannot touch the floor or a wall: its geoms "
-        "(contype/conaffinity: #" in out
+        "(contype/conaffinity: l_foot's box 0/0) share no bit with the floor's (floor 1/1)" in out
     )
     assert "share no bit with the floor's (floor 1/1); the robot falls through it." in out
     assert (

@@ -389,9 +389,10 @@ def test_unbalanced_inertia_is_balanced_in_both_libraries_with_a_note(tmp_path: 
     path = _hopper_with_include(tmp_path, inertia="0.02 0.02 0.1")
     r = load_robot(path)
     assert r.notes[0] == (
-        "1 bodies (leg) have inertias that break A + B >= C; MuJoCo balanced them (the file does "
-        "not set balanceinertia and MuJoCo cannot simulate them as written) and the controllers' "
-        "model uses the same balanced values; fix those <inertial>s to keep the file's"
+        "inertias that break A + B >= C in 1 of the file's bodies (leg): MuJoCo balanced them "
+        "(the file does not set balanceinertia and MuJoCo cannot simulate them as written) and "
+        "the controllers' model uses the same balanced values; fix those <inertial>s to keep "
+        "the file's"
     )
     assert r.mj_model.body_inertia[2] == pytest.approx([0.14 / 3] * 3)
     assert np.linalg.eigvalsh(r.pin_model.inertias[2].inertia) == pytest.approx([0.14 / 3] * 3)

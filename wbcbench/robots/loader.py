@@ -461,9 +461,9 @@ def _mujoco_model(
     if unbalanced:
         shown = ", ".join(unbalanced[:6]) + (", …" if len(unbalanced) > 6 else "")
         notes.append(
-            f"{len(unbalanced)} bodies ({shown}) have inertias that break A + B >= C; MuJoCo "
-            f"balanced them ({why}) and the controllers' model uses the same balanced values; "
-            "fix those <inertial>s to keep the file's"
+            f"inertias that break A + B >= C in {len(unbalanced)} of the file's bodies ({shown}): "
+            f"MuJoCo balanced them ({why}) and the controllers' model uses the same balanced "
+            "values; fix those <inertial>s to keep the file's"
         )
     if _add_floor(spec):
         notes.append(

@@ -49,7 +49,12 @@ def _collide(m: mujoco.MjModel, g1: int, g2: int) -> bool:
 
 
 def _name(m: mujoco.MjModel, g: int) -> str:
-    return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or f"#{g}"
+    """A geom's name, or its body's and its type for an unnamed one ("l_foot's box")."""
+    name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
+    if name:
+        return name
+    body = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[g]))
+    return f"{body}'s {mujoco.mjtGeom(m.geom_type[g]).name[7:].lower()}"
 
 
 def floor_collisions(m: mujoco.MjModel, frames: list[str]) -> list[tuple[int, str]]:
