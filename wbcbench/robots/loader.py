@@ -2,9 +2,10 @@
 
 ``load_robot("tocabi_like")`` loads a generated model; ``load_robot("path/to/robot.xml")`` or
 ``.urdf`` loads any humanoid with a free-floating base. Joints, frames and actuators are matched
-by NAME between the two libraries, never by position: URDF loaders order joints differently.
-Package paths, includes and mimic joints are resolved first (:mod:`wbcbench.robots.sources`); a
-model without a floor plane gets one.
+by NAME between the two libraries, never by position. Package paths and mimic joints are
+resolved first (:mod:`wbcbench.robots.sources`); MuJoCo compiles the file, and the Pinocchio
+model is built from that compiled model (:mod:`wbcbench.robots.pinocchio_model`), so the
+simulated robot and the controllers' are one. A model without a floor plane gets one.
 """
 
 from __future__ import annotations
