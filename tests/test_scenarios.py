@@ -51,8 +51,8 @@ def test_unknown_key(tmp_path: Path) -> None:
     path = variant(tmp_path, "duration: 10.0", "duration: 10.0\ndurration: 3")
     assert error_of(path) == (
         f"{path}: durration: unknown key 'durration'; valid keys: contacts, control_rate, "
-        "controllers, description, duration, environment, initial, kind, limits, metrics, name, "
-        "package_dirs, reconstruction, reproduces, robot, sim, tasks, version"
+        "controllers, description, duration, environment, frames, initial, kind, limits, metrics, "
+        "name, package_dirs, reconstruction, reproduces, robot, sim, tasks, version"
     )
 
 

@@ -17,6 +17,7 @@ Errors a user can cause print one line (``error: …``) and exit with status 2; 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -83,9 +84,12 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from wbcbench.robots.loader import simulation_model
+    from wbcbench.robots.parity import PARITY_TOLERANCE, model_parity
     from wbcbench.runs import Planner
     from wbcbench.scenarios.initial import initial_state, self_collisions, sole_mismatches
-    from wbcbench.scenarios.load import build_contact
+    from wbcbench.scenarios.load import build_contact, sole_boxes
+    from wbcbench.scenarios.preflight import contact_rank, floor_collisions, sole_placements
 
     planner = Planner()
     for loaded, robot in [planner.scenario(name, args.set) for name in args.scenarios]:
@@ -94,10 +98,31 @@ def _cmd_validate(args: argparse.Namespace) -> int:
             f"ok  {loaded.path}  ({spec.robot}, {len(spec.tasks)} tasks, "
             f"{len(spec.contacts)} contacts, {spec.duration:g} s, hash {loaded.hash})"
         )
+        parity = model_parity(robot, states=5)
+        print(
+            f"    model: MuJoCo and Pinocchio agree to {parity.mass:.1e} (M), "
+            f"{parity.bias:.1e} (bias forces), {parity.jacobian:.1e} (frame Jacobians), "
+            f"relative, at {parity.states} random states"
+        )
+        if parity.worst > PARITY_TOLERANCE:
+            print(
+                f"    warning: the two libraries disagree by more than {PARITY_TOLERANCE:g}: the "
+                "controllers' model is not the simulated one"
+            )
         for note in robot.notes:
             print(f"    note: {note}")
         q0 = initial_state(loaded, robot)[0]
         contacts = [(build_contact(c, robot), c.contact_geometry) for c in spec.contacts]
+        frames = [c.frame for c in spec.contacts]
+        sim = simulation_model(robot, sole_boxes(spec, robot), spec.sim.excluded_pairs)
+        for _, sentence in floor_collisions(sim, frames):
+            print(f"    warning: {sentence}")
+        geometry = [(c.frame, c.contact_geometry) for c in spec.contacts]
+        for _, sentence in sole_placements(robot, q0, geometry):
+            print(f"    warning: {sentence}")
+        rank = contact_rank(robot, q0, frames)
+        if rank:
+            print(f"    warning: {rank}")
         for _, sentence in sole_mismatches(robot, q0, contacts):
             print(f"    warning: {sentence}")
         overlaps = self_collisions(robot, q0)
@@ -580,13 +605,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     # 2-core machine turns microsecond operations into millisecond spikes.
     threadpool_limits(1)
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        sys.stdout.flush()  # a closed pipe is found here, not in the interpreter's last flush
+        return code
     except WbcBenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted: finished runs are saved; rerun to resume", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of the output went away (``wbcbench validate … | head``): stop quietly,
+        # and send what Python would still flush at exit nowhere
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, what a shell reports for a command a closed pipe ended
 
 
 if __name__ == "__main__":

@@ -35,6 +35,7 @@ SCENARIO_DIR = Path(__file__).resolve().parents[2] / "scenarios"
 # at them, so that stored results keep matching their scenarios.
 _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("package_dirs",), []),
+    (("frames",), {}),
     (("initial", "joints"), None),
     (("initial", "srdf"), None),
     (("initial", "state"), None),
@@ -430,17 +431,42 @@ def _check_reference_dim(file: str, i: int, task: TaskSpec) -> None:
 
 
 def load_scenario_robot(loaded: LoadedScenario) -> Any:
-    """The scenario's robot; a robot that cannot be loaded is an error at the key ``robot``."""
-    from wbcbench.robots.loader import load_robot
+    """The scenario's robot, with the scenario's ``frames:`` added; a robot that cannot be
+    loaded is an error at the key ``robot``, a frame on an unknown body one at
+    ``frames.<name>.body``."""
+    from wbcbench.robots.loader import ExtraFrame, load_robot
 
+    frames = tuple(ExtraFrame(name, f.body, f.pos, f.rpy) for name, f in loaded.spec.frames.items())
     try:
-        return load_robot(
+        robot = load_robot(
             loaded.spec.robot, base_dir=loaded.path.parent, package_dirs=loaded.spec.package_dirs
         )
     except ScenarioError:
         raise
     except WbcBenchError as exc:
         raise ScenarioError(str(loaded.path), "robot", str(exc)) from None
+    if not frames:
+        return robot
+    # the added frames checked on the file's robot, so that an error names its scenario key
+    m = robot.mj_model
+    bodies = [m.body(b).name for b in range(1, m.nbody)]
+    for frame in frames:
+        key = f"frames.{frame.name}"
+        if frame.body not in bodies:
+            unknown = UnknownNameError("body", frame.body, bodies)
+            raise ScenarioError(str(loaded.path), f"{key}.body", str(unknown))
+        if robot.has_frame(frame.name):
+            raise ScenarioError(
+                str(loaded.path),
+                key,
+                f"the robot has a body or site {frame.name!r} already; name the frame otherwise",
+            )
+    return load_robot(
+        loaded.spec.robot,
+        base_dir=loaded.path.parent,
+        package_dirs=loaded.spec.package_dirs,
+        frames=frames,
+    )
 
 
 def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:

@@ -196,6 +196,21 @@ class ContactSpec(Strict):
     )
 
 
+class FrameSpec(Strict):
+    """A frame fixed to a body of the robot at an offset: a contact's sole plane, or a task's
+    point, that the model file does not mark (added to the model as a site; no file edit)."""
+
+    body: str = Field(description="the body that carries the frame")
+    pos: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="the frame's origin in the body's frame [m]"
+    )
+    rpy: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0),
+        description="the frame's orientation in the body's frame: roll, pitch, yaw [rad] "
+        "(R = Rz(yaw) Ry(pitch) Rx(roll))",
+    )
+
+
 class LimitsSpec(Strict):
     """Torque-limit overrides: ``torque`` maps joint names (or fnmatch patterns) to [N·m]."""
 
@@ -354,6 +369,10 @@ class Scenario(Strict):
         default_factory=list,
         description="folders that hold the packages of the robot's package:// paths, relative "
         "to the scenario's folder",
+    )
+    frames: dict[str, FrameSpec] = Field(
+        default_factory=dict,
+        description="frames added to the robot, by name: {body, pos [m], rpy [rad]}",
     )
     kind: Literal["dynamic", "kinematic"] = Field(
         "dynamic",
