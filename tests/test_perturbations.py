@@ -3,6 +3,8 @@ quantisation, model error; their validation, their records and their repeatabili
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -195,6 +197,22 @@ PERTURBED = (
 )
 
 
+def logs_of(overrides: tuple[str, ...]) -> dict[str, np.ndarray]:
+    return run_closed_loop(plan_run(BASE, "qp_wbc", "daqp", overrides=overrides)).log.arrays()
+
+
+def test_the_same_seed_gives_the_same_log_and_another_seed_another() -> None:
+    a, b = logs_of(PERTURBED), logs_of(PERTURBED)
+    assert a.keys() == b.keys()
+    timed = {k for k in a if k.startswith("time.")}
+    for key in a.keys() - timed:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    other = logs_of(tuple(s.replace("seed: 11", "seed: 12") for s in PERTURBED))
+    assert not np.array_equal(a["tau.L_HipYaw"], other["tau.L_HipYaw"])
+    # the robot's own errors are logged beside the controller's view of them
+    assert "true_err.com.pos" in a and not np.array_equal(a["true_err.com.pos"], a["err.com.pos"])
+
+
 def test_a_perturbed_run_states_it_in_its_row_and_id() -> None:
     plain = plan_run(BASE, "qp_wbc", "daqp", overrides=SHORT)
     run = plan_run(BASE, "qp_wbc", "daqp", overrides=PERTURBED)
@@ -209,3 +227,29 @@ def test_a_perturbed_run_states_it_in_its_row_and_id() -> None:
     assert settings["controller_model"] == "the robot's file with masses x1.1, inertias x1.1"
     assert settings["simulated_model"] == ("the robot's file, motors with a 4 ms first-order lag")
     assert "perturbations" not in json.loads(base_row(plain, "x", "v")["settings"])
+
+
+def test_serial_and_dask_give_the_same_perturbed_run(tmp_path: Path) -> None:
+    import pandas as pd
+
+    from wbcbench.bench.sweep import load_sweep_file, plan_sweep, run_sweep
+
+    sets = ", ".join(f'"{s}"' for s in PERTURBED)
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(
+        "version: 1\ntracking:\n  - scenarios: [tocabi_stand_sway]\n"
+        f"    controllers: [qp_wbc]\n    solvers: [daqp]\n    set: [{sets}]\n"
+    )
+    for executor in ("serial", "dask"):
+        run_sweep(
+            plan_sweep(*load_sweep_file(str(sweep))),
+            tmp_path / executor,
+            executor=executor,
+            show_progress=False,
+        )
+    logs = [
+        pd.read_parquet(next((tmp_path / e / "logs").glob("*.parquet"))) for e in ("serial", "dask")
+    ]
+    timed = [c for c in logs[0].columns if c.startswith("time.")]
+    pd.testing.assert_frame_equal(logs[0].drop(columns=timed), logs[1].drop(columns=timed))
+    assert "true_err.com.pos" in logs[0]
