@@ -3,6 +3,7 @@ quantisation, model error; their validation, their records and their repeatabili
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import mujoco
@@ -219,8 +220,6 @@ def test_a_perturbed_run_states_it_in_its_row_and_id() -> None:
     assert run_id(run, "v") != run_id(plain, "v")
     row = base_row(run, "x", "v")
     assert row["seed"] == 11
-    import json
-
     settings = json.loads(row["settings"])
     assert settings["perturbations"]["sensing"] == {"q_noise": 2e-4, "v_noise": 0.02, "delay": 2}
     assert settings["perturbations"]["model"] == {"mass_scale": 1.1}
@@ -253,3 +252,56 @@ def test_serial_and_dask_give_the_same_perturbed_run(tmp_path: Path) -> None:
     timed = [c for c in logs[0].columns if c.startswith("time.")]
     pd.testing.assert_frame_equal(logs[0].drop(columns=timed), logs[1].drop(columns=timed))
     assert "true_err.com.pos" in logs[0]
+
+
+# -- the push-recovery study and the degradation table
+
+
+def test_the_push_study_brackets_the_largest_survived_push(tmp_path: Path) -> None:
+    from wbcbench.bench.push_recovery import PushStudy, push_table, run_push_study
+
+    study = PushStudy(
+        start=0.05, duration=0.05, recover_time=0.3, max_impulse=120.0, resolution=70.0
+    )
+    rows = run_push_study(
+        [("tocabi_stand_sway", "qp_wbc", "daqp", "pelvis")], ["+x"], study, tmp_path, "v@c"
+    )
+    (row,) = rows.to_dict("records")
+    trials = json.loads(row["trials"])
+    assert [t["impulse"] for t in trials] == [0.0, 120.0, 60.0]
+    assert trials[0]["survived"] and not trials[1]["survived"]
+    assert row["failed_Ns"] - row["survived_Ns"] <= study.resolution
+    assert row["failure"] == next(t["why"] for t in trials if t["impulse"] == row["failed_Ns"])
+    assert row["failure"].startswith(("fell: ", "failed: ", "CoM "))
+    # a rerun of the same code keeps the stored bracket
+    again = run_push_study(
+        [("tocabi_stand_sway", "qp_wbc", "daqp", "pelvis")], ["+x"], study, tmp_path, "v@d"
+    )
+    assert len(again) == 1
+    table = push_table(again)
+    assert table.loc[0, "+x"] == (
+        f"{row['survived_Ns']:g} [{row['survived_Ns']:g}, {row['failed_Ns']:g})"
+    )
+    assert (tmp_path / "tables" / "push_recovery.md").exists()
+
+
+def test_a_push_study_names_its_bad_body_and_scenario(tmp_path: Path) -> None:
+    from wbcbench.bench.sweep import load_sweep_file, plan_sweep
+
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(
+        "version: 1\npush_recovery:\n  scenarios: [tocabi_stand_sway]\n"
+        "  controllers: [qp_wbc]\n  body: pelvs\n"
+    )
+    with pytest.raises(ScenarioError) as exc:
+        plan_sweep(*load_sweep_file(str(sweep)))
+    assert str(exc.value).startswith(
+        f"{sweep}: push_recovery.body: scenario 'tocabi_stand_sway': {BASE}: "
+        "perturbations.pushes[0].body: unknown body 'pelvs'; valid choices: "
+    )
+    sweep.write_text("version: 1\npush_recovery:\n  max_impulse: 10\n  resolution: 10\n")
+    with pytest.raises(ScenarioError) as exc:
+        load_sweep_file(str(sweep))
+    assert str(exc.value) == (
+        f"{sweep}: push_recovery: resolution (10 N·s) must be below max_impulse (10 N·s)"
+    )
