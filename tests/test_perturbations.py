@@ -305,3 +305,19 @@ def test_a_push_study_names_its_bad_body_and_scenario(tmp_path: Path) -> None:
     assert str(exc.value) == (
         f"{sweep}: push_recovery: resolution (10 N·s) must be below max_impulse (10 N·s)"
     )
+
+
+def test_each_perturbed_run_is_placed_on_one_degradation_axis() -> None:
+    from wbcbench.report.robustness import ENCODER_Q_STD, ENCODER_V_STD, perturbation_axis
+
+    def settings(pert: dict) -> str:
+        return json.dumps({"duration_s": 3.0, **({"perturbations": pert} if pert else {})})
+
+    assert perturbation_axis(settings({})) == ("", 0.0)
+    assert perturbation_axis(settings({"model": {"mass_scale": 1.15}})) == ("mass", 15.0)
+    assert perturbation_axis(settings({"sensing": {"delay": 3}})) == ("delay", 3.0)
+    noise = {"q_noise": 2 * ENCODER_Q_STD, "v_noise": 2 * ENCODER_V_STD}
+    assert perturbation_axis(settings({"seed": 0, "sensing": noise})) == ("noise", 2.0)
+    # two axes at once, or an inertia error apart from the mass: on no axis
+    assert perturbation_axis(settings({"sensing": {**noise, "delay": 1}})) is None
+    assert perturbation_axis(settings({"model": {"mass_scale": 1.1, "inertia_scale": 1}})) is None

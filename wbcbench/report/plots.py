@@ -99,6 +99,9 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
     runs = res.of_kind("tracking")
     if runs.empty:
         return paths
+    # perturbed runs have their own figure (wbcbench.report.robustness)
+    if "settings" in runs:
+        runs = runs[~runs["settings"].fillna("").astype(str).str.contains('"perturbations"')]
     for scenario, group in runs.groupby("scenario"):
         logs = [(row, res.log(row["run_id"])) for _, row in group.iterrows()]
         logs = [(r, lg) for r, lg in logs if not lg.empty]
