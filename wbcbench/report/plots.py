@@ -9,6 +9,8 @@
 * ``rqr_fig1``: hierarchy time against the problem size N;
 * ``peers_kinematic``: kin_hqp beside pink and mink: the top level's error and residual while a
   lower level conflicts (rqr_gaze), the collision distance on rqr_stress, and time per tick;
+* ``degradation``: tracking error against mass error, sensing noise and delay
+  (:mod:`wbcbench.report.robustness`);
 * ``paper_*``: each paper's key comparison beside the paper's numbers
   (:mod:`wbcbench.report.paper_figures`).
 """
@@ -482,5 +484,7 @@ def write_plots(folder: str | Path) -> list[Path]:
     ):
         paths += fn(res, out)
     from wbcbench.report.paper_figures import write_paper_figures
+    from wbcbench.report.robustness import degradation_figure, degradation_table
 
+    paths += degradation_figure(degradation_table(res), out)
     return paths + write_paper_figures(folder, res)
