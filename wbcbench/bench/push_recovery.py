@@ -269,6 +269,7 @@ def push_table(rows: pd.DataFrame) -> pd.DataFrame:
         )
         .reset_index()
         .rename_axis(columns=None)
+        .fillna("not run")
     )
 
 
