@@ -342,6 +342,11 @@ def write_reports(out: Path) -> None:
     print(f"summary: {write_summary(out, store.runs(), store.metrics())}")
     print(f"solver report: {write_report(out)}")
     print(f"figures: {len(write_plots(out))} files in {out / 'figures'}")
+    from wbcbench.report.robustness import write_robustness
+
+    robustness = write_robustness(out)
+    if robustness:
+        print(f"robustness: {', '.join(str(p.relative_to(out)) for p in robustness)}")
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:

@@ -3,7 +3,9 @@
 A sweep file (YAML, ``version: 1``) holds lists of *matrices*. Each ``tracking`` matrix expands
 into closed-loop runs, each ``timing`` matrix into open-loop replay timing runs on recorded states;
 ``solver_comparison`` compares every QP backend on the dumped QPs of replayed steps and
-``hls_scaling`` times the hierarchical least-squares algorithms against the problem size::
+``hls_scaling`` times the hierarchical least-squares algorithms against the problem size, and
+``push_recovery`` bisects the largest push each controller × solver survives
+(:mod:`wbcbench.bench.push_recovery`)::
 
     version: 1
     tracking:
@@ -31,6 +33,7 @@ jobs; :func:`run_sweep` runs them. Every error names the sweep file and the key 
 
 from __future__ import annotations
 
+import dataclasses
 import fnmatch
 import json
 from collections.abc import Callable, Sequence
@@ -39,7 +42,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from wbcbench.bench.checks import CHECK_FACTOR
 from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE
@@ -200,6 +203,43 @@ class HlsScalingSpec(Strict):
     )
 
 
+class PushRecoverySpec(Strict):
+    """The push-recovery study (:mod:`wbcbench.bench.push_recovery`): per scenario ×
+    controller × solver and direction, the largest survived impulse, bracketed."""
+
+    scenarios: list[str] = ["tocabi_stand_sway"]
+    controllers: list[str] = ["*"]
+    solvers: list[str] = ["daqp"]
+    directions: list[Literal["+x", "-x", "+y", "-y"]] = Field(
+        ["+x", "-x", "+y", "-y"], min_length=1, description="world axes"
+    )
+    body: str | dict[str, str] = Field(
+        "pelvis", description="the pushed body, or scenario name → body (robots name it apart)"
+    )
+    start: float = Field(0.5, ge=0, le=60, description="when the push starts [s]")
+    duration: float = Field(0.1, gt=0, le=5, description="how long it lasts [s]")
+    recover_time: float = Field(
+        1.0, gt=0, le=60, description="after the push, when the CoM is judged [s]"
+    )
+    recover_distance: float = Field(
+        0.02, gt=0, le=1, description="how close to its reference the CoM must be then [m]"
+    )
+    max_impulse: float = Field(80.0, gt=0, le=1e4, description="the search's upper end [N·s]")
+    resolution: float = Field(5.0, gt=0, description="the widest reported bracket [N·s]")
+    wall_limit_s: float = Field(
+        14_400.0, gt=0, description="wall-clock guard of the whole study [s]"
+    )
+
+    @model_validator(mode="after")
+    def _resolution(self) -> PushRecoverySpec:
+        if not self.resolution < self.max_impulse:
+            raise ValueError(
+                f"resolution ({self.resolution:g} N·s) must be below max_impulse "
+                f"({self.max_impulse:g} N·s)"
+            )
+        return self
+
+
 class SweepSpec(Strict):
     """A sweep file."""
 
@@ -209,6 +249,7 @@ class SweepSpec(Strict):
     timing: list[TimingSpec] = Field(default_factory=list)
     solver_comparison: SolverComparisonSpec | None = None
     hls_scaling: HlsScalingSpec | None = None
+    push_recovery: PushRecoverySpec | None = None
 
 
 # -- the expanded plan
@@ -248,6 +289,8 @@ class SweepPlan:
     comparison_targets: list[tuple[Run, dict[str, Any]]]
     comparison_solvers: list[str]
     timing_by_scenario: dict[str, dict[str, Any]]  # scenario key → recording options
+    #: (scenario, controller, solver, pushed body) of the push-recovery study
+    push_targets: list[tuple[str, str, str, str]] = field(default_factory=list)
 
 
 def load_sweep_file(path: str | Path) -> tuple[str, SweepSpec]:
@@ -669,8 +712,72 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                 if not controller_class(controller).applies_to(loaded.spec):
                     run = planner.run(loaded, controller, mode="hot", timing=True)
                     targets.append((run, options))
+    pushes = _push_targets(planner, spec.push_recovery, file, not_applicable)
     return SweepPlan(
-        file, spec, jobs, not_applicable, comparison, targets, comp_solvers, timing_opts
+        file, spec, jobs, not_applicable, comparison, targets, comp_solvers, timing_opts, pushes
+    )
+
+
+def _push_targets(
+    planner: Planner, study: PushRecoverySpec | None, file: str, notes: list[str]
+) -> list[tuple[str, str, str, str]]:
+    """The study's scenario × controller × solver with the body each scenario's robot is pushed
+    on, each trial's scenario checked once (the pushed body, the controller's settings) before
+    any simulation step."""
+    from wbcbench.bench.push_recovery import DIRECTIONS, push_overrides
+    from wbcbench.controllers.registry import controller_class
+
+    if study is None:
+        return []
+    key = "push_recovery"
+    names = resolve_scenarios(study.scenarios, file, f"{key}.scenarios")
+    controllers = resolve_controllers(study.controllers, file, f"{key}.controllers")
+    solvers = resolve_solvers(study.solvers, file, f"{key}.solvers")
+    out: list[tuple[str, str, str, str]] = []
+    bodies = study.body if isinstance(study.body, dict) else {}
+    for name in bodies:
+        if name not in names:
+            raise ScenarioError(
+                file, f"{key}.body.{name}", f"not one of the study's scenarios: {', '.join(names)}"
+            )
+    for name in names:
+        body = bodies.get(name, "pelvis") if bodies else str(study.body)
+        settings = dataclasses.replace(push_study(study), body=body)
+        overrides = tuple(push_overrides(settings, next(iter(DIRECTIONS)), study.max_impulse))
+        where = f"{key}.body.{name}" if bodies else f"{key}.body"
+        loaded = _scenario(planner, name, overrides, file, where)
+        if not any(t.type == "com" for t in loaded.spec.tasks):
+            raise ScenarioError(
+                file, f"{key}.scenarios", f"scenario {name!r} has no com task to judge by"
+            )
+        for controller, explicit in controllers:
+            cls = controller_class(controller)
+            reason = cls.applies_to(loaded.spec) or (
+                "velocity-level: no physics to push" if cls.kind == "velocity" else ""
+            )
+            if reason:
+                if explicit:
+                    notes.append(f"{key} · {loaded.name} · {controller}: {reason}")
+                continue
+            for solver in [cls.own_solver] if cls.own_solver else solvers:
+                planner.run(loaded, controller, solver)
+                if (name, controller, solver, body) not in out:
+                    out.append((name, controller, solver, body))
+    return out
+
+
+def push_study(spec: PushRecoverySpec) -> Any:
+    """The study's settings (:class:`wbcbench.bench.push_recovery.PushStudy`)."""
+    from wbcbench.bench.push_recovery import PushStudy
+
+    return PushStudy(
+        body=spec.body if isinstance(spec.body, str) else "pelvis",
+        start=spec.start,
+        duration=spec.duration,
+        recover_time=spec.recover_time,
+        recover_distance=spec.recover_distance,
+        max_impulse=spec.max_impulse,
+        resolution=spec.resolution,
     )
 
 
@@ -861,6 +968,19 @@ def run_sweep(
         scaling = (plan.spec.hls_scaling, store, version)
         _guarded("hls scaling", run_hls_scaling, scaling, HLS_WALL_LIMIT_S, store.folder)
         store.refresh_mirror()  # (its rows were appended by the child)
+    if plan.spec.push_recovery is not None and plan.push_targets:
+        from wbcbench.bench.push_recovery import run_push_study
+
+        study = plan.spec.push_recovery
+        args = (
+            plan.push_targets,
+            list(study.directions),
+            push_study(study),
+            store.folder,
+            version,
+            show_progress,
+        )
+        _guarded("push recovery", run_push_study, args, study.wall_limit_s, store.folder)
     return report
 
 

@@ -14,6 +14,8 @@ names its solver, leaves failed runs out of its axis scaling (and marks them), a
 * ``rqr_fig1``: hierarchy time against the problem size N;
 * ``peers_kinematic``: kin_hqp beside pink and mink: the top level's error and residual while a
   lower level conflicts (rqr_gaze), the collision distance on rqr_stress, and time per tick;
+* ``degradation``: tracking error against mass error, sensing noise and delay
+  (:mod:`wbcbench.report.robustness`);
 * ``paper_*``: each paper's key comparison beside the paper's numbers
   (:mod:`wbcbench.report.paper_figures`).
 """
@@ -127,6 +129,9 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
     runs = res.of_kind("tracking")
     if runs.empty:
         return paths
+    # perturbed runs have their own figure (wbcbench.report.robustness)
+    if "settings" in runs:
+        runs = runs[~runs["settings"].fillna("").astype(str).str.contains('"perturbations"')]
     for scenario, group in runs.groupby("scenario"):
         logs = [(row, res.log(row["run_id"])) for _, row in group.iterrows()]
         logs = [(r, lg) for r, lg in logs if not lg.empty]
@@ -633,5 +638,7 @@ def write_plots(folder: str | Path) -> list[Path]:
     ):
         paths += fn(res, out)
     from wbcbench.report.paper_figures import write_paper_figures
+    from wbcbench.report.robustness import degradation_figure, degradation_table
 
+    paths += degradation_figure(degradation_table(res), out)
     return paths + write_paper_figures(folder, res)

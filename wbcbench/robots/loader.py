@@ -630,8 +630,10 @@ def simulation_model(
     robot: Robot,
     soles: dict[str, tuple[float, float, float, float]],
     exclude: Sequence[tuple[str, str]] = (),
+    payloads: Sequence[tuple[str, float, Sequence[float]]] = (),
+    actuator_lag: float = 0.0,
 ) -> mujoco.MjModel:
-    """``robot``'s MuJoCo model (a fresh copy) with two edits of a scenario's simulation.
+    """``robot``'s MuJoCo model (a fresh copy) with the edits of a scenario's simulation.
 
     ``exclude``: pairs of bodies whose contacts with each other are not simulated (MuJoCo's
     ``<contact><exclude>``).
@@ -643,11 +645,19 @@ def simulation_model(
     replaces (the added floor's collision settings, :data:`FLOOR`, when none of them collides).
     The box is massless: masses and inertias are those of ``robot.mj_model`` either way.
 
+    ``payloads``: ``(frame, mass [kg], offset (3,) [m])``, a point mass welded to the body that
+    carries the frame, ``offset`` from that body's origin in its axes (a body of its own, so
+    the file's bodies keep their inertias).
+
+    ``actuator_lag``: a first-order time constant [s] on every motor (MuJoCo's exact filter
+    dynamics, applied in the same step: the motor's torque follows its command as
+    1 − exp(−t / lag)).
+
     Raises:
         ModelError: the robot keeps no MuJoCo spec, a frame is not in the MuJoCo model, or the
             edited model does not compile.
     """
-    if not soles and not exclude:
+    if not soles and not exclude and not payloads and not actuator_lag:
         return robot.fresh_mj_model()
     if robot.mj_spec is None:
         raise ModelError(f"{robot.path}: no MuJoCo spec kept to edit the feet of")
@@ -691,6 +701,24 @@ def simulation_model(
         )
     for first, second in exclude:
         spec.add_exclude(bodyname1=first, bodyname2=second)
+    for i, (frame, mass, offset) in enumerate(payloads):
+        body = frame_body(m, frame)
+        if body <= 0:
+            raise ModelError(f"{robot.path}: MuJoCo has no body or site {frame!r}")
+        # a point mass; MuJoCo asks every body for a positive inertia
+        spec.body(m.body(body).name).add_body(
+            name=f"payload_{i}_on_{m.body(body).name}",
+            pos=list(offset),
+            mass=mass,
+            inertia=[1e-6 * mass] * 3,
+            explicitinertial=True,
+        )
+    if actuator_lag > 0:
+        for a in robot.actuator_ids:
+            act = spec.actuator(m.actuator(int(a)).name)
+            act.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
+            act.dynprm[0] = actuator_lag
+            act.actearly = True
     try:
         return spec.compile()
     except Exception as exc:

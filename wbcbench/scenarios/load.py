@@ -22,6 +22,7 @@ from wbcbench.errors import ScenarioError, UnknownNameError, WbcBenchError
 from wbcbench.scenarios.schema import (
     REFERENCE_DIM_FIELD,
     ContactSpec,
+    PerturbationsSpec,
     Scenario,
     TaskSpec,
 )
@@ -41,6 +42,7 @@ _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("initial", "state"), None),
     (("initial", "settle"), 0.0),
     (("sim", "self_collision"), True),
+    (("perturbations",), PerturbationsSpec().model_dump(mode="json")),
 )
 # the same for keys of each contact
 _LATER_CONTACT_KEYS: tuple[tuple[str, Any], ...] = (("contact_geometry", "model"),)
@@ -391,6 +393,13 @@ def _check_consistency(file: str, spec: Scenario) -> None:
         raise ScenarioError(
             file, "initial.settle", "a kinematic scenario has no physics to settle; remove it"
         )
+    if spec.kind == "kinematic" and spec.perturbations.active:
+        raise ScenarioError(
+            file,
+            "perturbations",
+            "a kinematic scenario has no physics to perturb; perturbations apply to dynamic "
+            "scenarios (kind: dynamic)",
+        )
     if spec.kind == "dynamic":
         steps = 1.0 / (spec.control_rate * spec.sim.timestep)
         if abs(steps - round(steps)) > 1e-6 * max(1.0, steps) or round(steps) < 1:
@@ -529,6 +538,15 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
                 f"sim.self_collision.exclude[{i}]",
                 f"a pair of two bodies, got {pair[0]!r} twice (a body never collides with itself)",
             )
+    pert = spec.perturbations
+    named = [(f"perturbations.pushes[{i}].body", p.body) for i, p in enumerate(pert.pushes)]
+    if pert.model.payload is not None:
+        named.append(("perturbations.model.payload.body", pert.model.payload.body))
+    for key, body in named:
+        from wbcbench.robots.loader import frame_body
+
+        if frame_body(robot.mj_model, body) <= 0:
+            raise ScenarioError(file, key, str(UnknownNameError("body", body, bodies)))
     if spec.initial.source != "keyframe":
         from wbcbench.scenarios.initial import initial_joints
 

@@ -7,6 +7,7 @@ Checks that need the robot (frame and joint names, keyframes) happen in
 
 from __future__ import annotations
 
+from itertools import pairwise
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -354,6 +355,113 @@ class EnvironmentSpec(Strict):
         return self
 
 
+# -- perturbations: what a real robot meets and the ideal run does not
+
+Vec3 = tuple[float, float, float]
+
+
+class PushSpec(Strict):
+    """An external wrench on a body of the simulated robot over ``[start, start + duration]``.
+
+    MuJoCo applies it at the body's centre of mass (``xfrc_applied``), set before every physics
+    step; the controller is never told. ``shape`` scales it over the interval: ``pulse`` holds
+    it (impulse = force × duration), ``half_sine`` rises and falls as sin(π s / duration)
+    (impulse = force × duration × 2/π); ``profile`` gives the scale instead, as
+    ``[[s, scale], …]`` pieces joined linearly (s from ``start`` [s]).
+    """
+
+    body: str = Field(description="a body of the robot, or a frame that names its body")
+    start: float = Field(ge=0, le=3600, description="[s] from the run's start")
+    duration: float = Field(gt=0, le=3600, description="[s]")
+    force: Vec3 = Field((0.0, 0.0, 0.0), description="[N]")
+    torque: Vec3 = Field((0.0, 0.0, 0.0), description="[N·m]")
+    frame: Literal["world", "body"] = Field(
+        "world", description="the axes of force and torque: the world's or the body's (moving)"
+    )
+    shape: Literal["pulse", "half_sine"] = "pulse"
+    profile: list[tuple[float, float]] | None = None
+
+    @model_validator(mode="after")
+    def _profile(self) -> PushSpec:
+        if self.profile is not None:
+            times = [p[0] for p in self.profile]
+            if len(times) < 2 or any(b <= a for a, b in pairwise(times)):
+                raise ValueError(f"profile times must be at least two, increasing, got {times}")
+            if times[0] < 0 or times[-1] > self.duration:
+                raise ValueError(
+                    f"profile times must lie in [0, duration = {self.duration:g}], got {times}"
+                )
+        return self
+
+
+class SensingSpec(Strict):
+    """What the controller measures: the simulated state with seeded Gaussian noise on the
+    joint positions and rates (the floating base's state, an estimator's job, stays exact),
+    and a delay between that measurement and the torque it gives."""
+
+    q_noise: float = Field(0.0, ge=0, le=1, description="noise std on each joint position [rad]")
+    v_noise: float = Field(0.0, ge=0, le=100, description="noise std on each joint rate [rad/s]")
+    delay: int = Field(
+        0, ge=0, le=1000, description="control ticks between a measurement and its torque"
+    )
+
+
+class ActuationSpec(Strict):
+    """What the motors do with a commanded torque: rounded to a step, then a first-order lag."""
+
+    lag: float = Field(0.0, ge=0, le=1, description="first-order time constant [s]; 0: none")
+    quantum: float = Field(0.0, ge=0, le=100, description="torque quantisation step [N·m]")
+
+
+class PayloadSpec(Strict):
+    """A point mass fixed to a body of the simulated robot that the controller does not know."""
+
+    body: str
+    mass: float = Field(gt=0, le=1000, description="[kg]")
+    offset: Vec3 = Field((0.0, 0.0, 0.0), description="from the body's origin, its axes [m]")
+
+
+class ModelErrorSpec(Strict):
+    """How the controller's model differs from the simulated robot.
+
+    ``mass_scale``, ``inertia_scale`` and ``com_offset`` change the controller's Pinocchio
+    model (every link's mass and rotational inertia scaled, every link's centre of mass moved
+    in its joint's frame); ``payload`` changes the simulated model (MuJoCo) instead.
+    """
+
+    mass_scale: float = Field(1.0, gt=0, le=10)
+    inertia_scale: float | None = Field(
+        None, gt=0, le=10, description="rotational inertias; mass_scale when omitted"
+    )
+    com_offset: Vec3 = Field((0.0, 0.0, 0.0), description="[m], each link in its own frame")
+    payload: PayloadSpec | None = None
+
+
+class PerturbationsSpec(Strict):
+    """Disturbances, sensing, actuation and model error; everything off by default."""
+
+    seed: int = Field(0, ge=0, description="seeds the sensing noise")
+    pushes: list[PushSpec] = Field(default_factory=list)
+    sensing: SensingSpec = Field(default_factory=lambda: SensingSpec())
+    actuation: ActuationSpec = Field(default_factory=lambda: ActuationSpec())
+    model: ModelErrorSpec = Field(default_factory=lambda: ModelErrorSpec())
+
+    @property
+    def active(self) -> bool:
+        """Whether anything differs from the ideal run."""
+        return bool(self.summary())
+
+    def summary(self) -> dict[str, Any]:
+        """The keys that differ from their defaults (the seed only beside noise)."""
+        out = self.model_dump(mode="json", exclude_defaults=True)
+        noisy = self.sensing.q_noise > 0 or self.sensing.v_noise > 0
+        if not noisy:
+            out.pop("seed", None)
+        elif "seed" not in out:
+            out["seed"] = self.seed
+        return out
+
+
 class Scenario(Strict):
     """A declarative benchmark scenario."""
 
@@ -391,6 +499,10 @@ class Scenario(Strict):
     )
     metrics: MetricsSpec = Field(default_factory=lambda: MetricsSpec())
     environment: EnvironmentSpec = Field(default_factory=lambda: EnvironmentSpec())
+    perturbations: PerturbationsSpec = Field(
+        default_factory=lambda: PerturbationsSpec(),
+        description="pushes, sensing noise and delay, actuator lag, model error (all off)",
+    )
 
     # Checks across fields (unique names, the window inside the duration, the control period a
     # multiple of the physics step, fmin ≤ fmax) live in wbcbench.scenarios.load, where each
