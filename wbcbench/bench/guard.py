@@ -18,6 +18,13 @@ costs one interpreter start per guarding process (about 2 s).
 The server is started with :mod:`subprocess`, not :mod:`multiprocessing`, so that daemonic
 processes (the workers of a dask cluster, local or remote) guard their runs too: multiprocessing
 forbids them children.
+
+Nothing outlives its caller. On Linux the server asks the kernel for SIGKILL when the thread
+that started it ends (``prctl(PR_SET_PDEATHSIG)``), and so does every child it forks, for when
+the server ends: a sweep killed by any means takes its server and its running child with it
+within milliseconds, and a resume never meets a writer of the killed sweep (see also
+:mod:`wbcbench.bench.lock`). Elsewhere the server still kills its child when the caller's end
+of its request pipe closes.
 """
 
 from __future__ import annotations
@@ -86,6 +93,24 @@ def can_guard() -> bool:
     return hasattr(os, "fork")
 
 
+#: ``PR_SET_PDEATHSIG`` of ``<linux/prctl.h>``
+PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent: int) -> None:
+    """Have the kernel send this process SIGKILL when its parent ``parent`` ends (Linux; a no-op
+    elsewhere). Exits at once when ``parent`` has already ended (this process was re-parented
+    before the request took effect)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) != 0:
+            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
+    if os.getppid() != parent:
+        os._exit(1)
+
+
 # -- the child: one run ---------------------------------------------------------------------
 
 
@@ -129,10 +154,12 @@ def _redirect_stdout(path: str) -> None:
     os.close(fd)
 
 
-def _run_child(payload: bytes) -> None:
-    """In the forked child: unpickle the call, run it, write the pickled outcome to the result
-    file, and leave without the server's exit handlers (``os._exit``)."""
+def _run_child(payload: bytes, server: int) -> None:
+    """In the forked child of the fork server ``server``: unpickle the call, run it, write the
+    pickled outcome to the result file, and leave without the server's exit handlers
+    (``os._exit``)."""
     try:
+        die_with_parent(server)
         stdout, result_path, path, cwd, env, saved, call = pickle.loads(payload)
         # the caller's now, not when the server started: its modules, working folder and
         # environment (a test's or a notebook's changes included)
@@ -194,10 +221,11 @@ def _wait_or_kill(pid: int, requests: Connection) -> int:
             os.close(pidfd)
 
 
-def serve(request_fd: int, reply_fd: int) -> None:
+def serve(request_fd: int, reply_fd: int, caller: int) -> None:
     """The fork server's loop: import :data:`PRELOAD`, then for every request fork a child that
     runs it, reply ``("started", pid)`` and, once it ends, ``("ended", status)``. Ends when the
-    caller closes its end of the request pipe."""
+    caller (process ``caller``) closes its end of the request pipe, or ends."""
+    die_with_parent(caller)
     requests = Connection(request_fd, writable=False)
     replies = Connection(reply_fd, readable=False)
     for name in PRELOAD:
@@ -214,11 +242,12 @@ def serve(request_fd: int, reply_fd: int) -> None:
             continue
         sys.stdout.flush()
         sys.stderr.flush()
+        server = os.getpid()
         pid = os.fork()
         if pid == 0:
             requests.close()
             replies.close()
-            _run_child(payload)
+            _run_child(payload, server)
         replies.send(("started", pid))
         replies.send(("ended", _wait_or_kill(pid, requests)))
 
@@ -231,7 +260,14 @@ class ForkServer:
         reply_r, reply_w = os.pipe()
         env = {**os.environ, **SERVER_ENV}
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "wbcbench.bench.guard", str(request_r), str(reply_w)],
+            [
+                sys.executable,
+                "-m",
+                "wbcbench.bench.guard",
+                str(request_r),
+                str(reply_w),
+                str(os.getpid()),
+            ],
             pass_fds=(request_r, reply_w),
             stdin=subprocess.DEVNULL,
             env=env,
@@ -422,4 +458,4 @@ def timing_deadline(window_end: float, ticks: int) -> float:
 
 
 if __name__ == "__main__":
-    serve(int(sys.argv[1]), int(sys.argv[2]))
+    serve(int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]))

@@ -10,18 +10,21 @@ accuracy tier and mode:
 
 A named setting (``osqp_libdwbc``) runs at its own tier and mode only.
 
-Each solve is one row of ``qp_solves.csv`` (appended as it finishes; a rerun skips the rows it
-has): the reported status, whether the solution is *valid* — checked independently of the status
-with :func:`wbcbench.qp.validated` at the tier's tolerance scaled by the data's magnitude — the
-wall, set-up and solver-internal times, iterations, primal / dual residuals, duality gap and the
-distance to a high-accuracy reference solution. :mod:`wbcbench.report.solvers` reads the table.
+Each solve is one row of ``qp_solves.csv`` (committed as it finishes, keyed; a rerun skips the
+rows it has and never writes a key twice): the reported status, whether the solution is *valid*
+— checked independently of the status with :func:`wbcbench.qp.validated` at the tier's
+tolerance scaled by the data's magnitude — the wall, set-up and solver-internal times,
+iterations, primal / dual residuals, duality gap and the distance to a high-accuracy reference
+solution. :mod:`wbcbench.report.solvers` reads the table.
 """
 
 from __future__ import annotations
 
 import csv
 import hashlib
+import io
 import json
+import os
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -30,6 +33,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from wbcbench.bench.results import one_line
 from wbcbench.qp import Problem, Solution, check_solution, make_solver, validated
 from wbcbench.qp.registry import DEFAULT_SOLVER
 from wbcbench.qp.settings import TIER_EPS
@@ -90,26 +94,63 @@ def file_key(path: Path) -> str:
 
 
 class SolveTable:
-    """The append-only ``qp_solves.csv`` of one results folder."""
+    """The append-only ``qp_solves.csv`` of one results folder, keyed by ``key`` (problem file ×
+    solver × tier × mode × code version).
+
+    Each row is committed alone, as one whole line in one ``write`` to the file opened for
+    appending, and only when its key is not stored yet: a kill loses at most the solve under
+    way, and leaves at most a torn last line, which the next writer cuts (:meth:`done`) and
+    readers ignore. One writer at a time (the sweep's lock, :mod:`wbcbench.bench.lock`).
+    """
 
     def __init__(self, folder: str | Path) -> None:
         self.path = Path(folder) / SOLVES_CSV
+        self._keys: set[str] | None = None
+
+    def _whole_lines(self) -> bytes:
+        data = self.path.read_bytes() if self.path.exists() else b""
+        return data[: data.rfind(b"\n") + 1]
 
     def done(self) -> set[str]:
-        if not self.path.exists():
-            return set()
-        return set(pd.read_csv(self.path, usecols=["key"])["key"])
+        """The stored keys, after cutting a torn last line (for the writer only)."""
+        if self.path.exists():
+            data = self.path.read_bytes()
+            if not data.endswith(b"\n"):
+                tmp = self.path.with_suffix(".csv.tmp")
+                tmp.write_bytes(data[: data.rfind(b"\n") + 1])
+                os.replace(tmp, self.path)
+        table = self.read()
+        self._keys = set(table["key"]) if "key" in table.columns else set()
+        return set(self._keys)
 
-    def append(self, rows: Iterable[dict[str, Any]]) -> None:
-        new = not self.path.exists()
-        with self.path.open("a", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=SOLVE_COLUMNS, extrasaction="ignore")
-            if new:
+    def add(self, row: dict[str, Any]) -> bool:
+        """Commit one row unless its key is stored; whether it was written."""
+        if self._keys is None:
+            self.done()
+        assert self._keys is not None
+        if row["key"] in self._keys:
+            return False
+        text = io.StringIO()
+        writer = csv.DictWriter(text, fieldnames=SOLVE_COLUMNS, extrasaction="ignore")
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            if os.fstat(fd).st_size == 0:
                 writer.writeheader()
-            writer.writerows(rows)
+            writer.writerow(one_line(row))
+            os.write(fd, text.getvalue().encode())
+        finally:
+            os.close(fd)
+        self._keys.add(row["key"])
+        return True
+
+    def append(self, rows: Iterable[dict[str, Any]]) -> int:
+        """:meth:`add` each row; how many were written."""
+        return sum(self.add(row) for row in rows)
 
     def read(self) -> pd.DataFrame:
-        return pd.read_csv(self.path) if self.path.exists() else pd.DataFrame()
+        """The stored rows (a torn last line, of a write under way, left out)."""
+        data = self._whole_lines()
+        return pd.read_csv(io.BytesIO(data)) if data else pd.DataFrame()
 
 
 def reference_solution(problem: Problem, solver: str) -> tuple[np.ndarray | None, bool]:
@@ -189,7 +230,6 @@ def compare_on_problems(
     with tqdm(total=len(combos), desc="solver comparison", disable=not show_progress) as bar:
         for solver, tier, mode in combos:
             bar.update()
-            rows: list[dict[str, Any]] = []
             reason = next(
                 (
                     r.reason
@@ -212,14 +252,8 @@ def compare_on_problems(
                         continue
                     base = _base(path, problem, solver, tier, mode, key, version)
                     if reason or too_slow:
-                        rows.append(
-                            {
-                                **base,
-                                "status": "skipped",
-                                "valid": False,
-                                "message": reason or too_slow,
-                            }
-                        )
+                        row = {**base, "status": "skipped", "valid": False}
+                        written += table.add({**row, "message": reason or too_slow})
                         continue
                     if handle is None or mode == "cold":
                         handle = make_solver(solver, tier=tier, mode=mode)
@@ -229,16 +263,13 @@ def compare_on_problems(
                     t0 = time.perf_counter()
                     sol = handle.solve(problem)
                     elapsed = time.perf_counter() - t0
-                    rows.append(
-                        {**base, **solve_row(problem, sol, tier, ref), "reference_ok": ref_ok}
-                    )
+                    measured = solve_row(problem, sol, tier, ref)
+                    written += table.add({**base, **measured, "reference_ok": ref_ok})
                     if elapsed * 1e3 > max_solve_ms:
                         too_slow = (
                             f"one solve took {1e3 * elapsed:.0f} ms > max_solve_ms = "
                             f"{max_solve_ms:g} ms; the rest of this solver × tier × mode skipped"
                         )
-            table.append(rows)
-            written += len(rows)
     return written
 
 

@@ -32,6 +32,7 @@ jobs; :func:`run_sweep` runs them. Every error names the sweep file and the key 
 from __future__ import annotations
 
 import fnmatch
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -745,7 +746,26 @@ def run_sweep(
     ``failed`` recomputes the planned rows stored as ``failed`` or ``error``, ``all`` every
     planned row (their old rows, metrics and logs are removed first). ``max_jobs`` stops
     after that many computed rows (to test interruption).
+
+    The sweep holds ``out`` for its whole run (:class:`~wbcbench.bench.lock.SweepLock`): it
+    starts only once no earlier sweep on the folder, nor any process one started, is alive.
     """
+    from wbcbench.bench.lock import SweepLock
+
+    with SweepLock(out):
+        return _run_sweep(plan, out, executor, scheduler, show_progress, max_jobs, on_row, rerun)
+
+
+def _run_sweep(
+    plan: SweepPlan,
+    out: str | Path,
+    executor: str,
+    scheduler: str | None,
+    show_progress: bool,
+    max_jobs: int | None,
+    on_row: Callable[[Job, dict[str, Any]], None] | None,
+    rerun: Literal["none", "failed", "all"],
+) -> SweepReport:
     from threadpoolctl import threadpool_limits
     from tqdm import tqdm
 
@@ -862,6 +882,16 @@ def _guarded(
             fn(*args)
         return
     printed = printed_path(folder, what.replace(" ", "_"))
-    outcome = call_with_deadline(fn, args, seconds, printed)
+    outcome = call_with_deadline(as_writer, (str(folder), os.getpid(), fn, args), seconds, printed)
     if not outcome.ok:
         print(f"{what}: {outcome.message}")
+
+
+def as_writer(folder: str, sweep_pid: int, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
+    """``fn(*args)`` in a guarded child that writes to ``folder`` for the sweep ``sweep_pid``,
+    holding the folder's writers' lock (:func:`~wbcbench.bench.lock.hold_as_writer`) until the
+    child ends."""
+    from wbcbench.bench.lock import hold_as_writer
+
+    hold_as_writer(folder, sweep_pid)
+    return fn(*args)

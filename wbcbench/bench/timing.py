@@ -19,6 +19,7 @@ solved but …``.
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 import traceback
@@ -269,7 +270,9 @@ def dump_problems(
                 "index": k,
             }
             path = target / f"t{i:05d}-{k:02d}.npz"
-            problem.save(path)
+            part = path.with_name(f".{path.name}")  # atomic: a kill leaves no half file
+            problem.save(part)
+            os.replace(part, path)
             saved.append(path)
         return ""
 
