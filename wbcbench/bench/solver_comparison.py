@@ -209,15 +209,26 @@ def compare_on_problems(
     skip: Iterable[Any] = (),
     version: str = "",
     show_progress: bool = True,
+    solve_limit_s: float = 10.0,
 ) -> int:
     """Solve every dumped problem with every solver × tier × mode the solver runs at (a named
-    setting runs at its own only); append rows; return count."""
+    setting runs at its own only); append rows; return count.
+
+    In a guarded child each solve has a deadline of ``solve_limit_s``: the caller stops a child
+    whose solve outlasts it and starts the comparison again, which records that solve (named
+    in ``qp_solves.pending.json`` before it began) as failed and skips the rest of its solver ×
+    tier × mode.
+    """
     from tqdm import tqdm
 
+    from wbcbench.bench.guard import report_progress, watch_step
     from wbcbench.qp import solver_class
 
     table = SolveTable(folder)
+    table.done()
+    written = _record_hung(folder, table)
     done = table.done()
+    hung = _hung_combos(table)
     sequences = problem_sequences(folder)
     loaded = {p: Problem.load(p) for seq in sequences for p in seq}
     keys = {p: file_key(p) for p in loaded}
@@ -225,8 +236,9 @@ def compare_on_problems(
     combos = [
         (s, t, m) for s in solvers for t in tiers for m in modes if solver_class(s).offers(t, m)
     ]
-    written = 0
     skip_rules = list(skip)
+    todo = len(combos) * sum(len(seq) for seq in sequences)
+    count = 0
     with tqdm(total=len(combos), desc="solver comparison", disable=not show_progress) as bar:
         for solver, tier, mode in combos:
             bar.update()
@@ -241,10 +253,12 @@ def compare_on_problems(
                 ),
                 "",
             )
-            too_slow = ""
+            too_slow = hung.get((solver, tier, mode), "")
             for seq in sequences:
                 handle = None
                 for path in seq:
+                    count += 1
+                    report_progress(count, todo)
                     problem = loaded[path]
                     key = f"{keys[path]}:{solver}:{tier}:{mode}:{version.split('@', 1)[0]}"
                     if key in done:
@@ -258,11 +272,16 @@ def compare_on_problems(
                     if handle is None or mode == "cold":
                         handle = make_solver(solver, tier=tier, mode=mode)
                     if path not in refs:
+                        watch_step(f"reference {reference_solver} on {base['problem']}", 60.0)
                         refs[path] = reference_solution(problem, reference_solver)
                     ref, ref_ok = refs[path]
+                    doing = f"solver {solver} ({tier}, {mode}) on {base['problem']}"
+                    _pending(folder, base, solve_limit_s)
+                    watch_step(doing, solve_limit_s)
                     t0 = time.perf_counter()
                     sol = handle.solve(problem)
                     elapsed = time.perf_counter() - t0
+                    watch_step("", 0.0)
                     measured = solve_row(problem, sol, tier, ref)
                     written += table.add({**base, **measured, "reference_ok": ref_ok})
                     if elapsed * 1e3 > max_solve_ms:
@@ -271,6 +290,49 @@ def compare_on_problems(
                             f"{max_solve_ms:g} ms; the rest of this solver × tier × mode skipped"
                         )
     return written
+
+
+PENDING_JSON = "qp_solves.pending.json"
+#: the message of a solve stopped at its deadline
+HUNG = "no answer within the per-solve deadline of {limit:g} s; stopped"
+
+
+def _pending(folder: str | Path, base: dict[str, Any], limit: float) -> None:
+    """Name the solve about to begin (atomically), for a comparison that resumes after it."""
+    path = Path(folder) / PENDING_JSON
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps({"row": base, "limit": limit}, default=str))
+    os.replace(tmp, path)
+
+
+def _record_hung(folder: str | Path, table: SolveTable) -> int:
+    """A failed row for the solve named pending when the caller stopped it at its deadline
+    (after a kill of the sweep it is solved again). Returns the rows written."""
+    path = Path(folder) / PENDING_JSON
+    if not path.exists():
+        return 0
+    pending = json.loads(path.read_text())
+    path.unlink()
+    from wbcbench.bench.guard import STOPPED_ENV
+
+    if not os.environ.get(STOPPED_ENV):
+        return 0
+    row = {**pending["row"], "status": "failed", "valid": False}
+    return int(table.add({**row, "message": HUNG.format(limit=pending["limit"])}))
+
+
+def _hung_combos(table: SolveTable) -> dict[tuple[str, str, str], str]:
+    """Solver × tier × mode with a solve stopped at its deadline: why the rest is skipped."""
+    rows = table.read()
+    if rows.empty:
+        return {}
+    prefix = HUNG.split("{", 1)[0]
+    stopped = rows[rows["message"].astype(str).str.startswith(prefix)]
+    return {
+        (str(r.solver), str(r.tier), str(r.mode)): f"an earlier solve of this solver × tier × "
+        f"mode: {r.message}"
+        for r in stopped.itertuples()
+    }
 
 
 def _match(value: str, pattern: str) -> bool:
@@ -323,6 +385,7 @@ def run_solver_comparison(plan: Any, folder: str | Path, show_progress: bool = T
         spec.skip,
         version,
         show_progress,
+        spec.solve_limit_s,
     )
 
 

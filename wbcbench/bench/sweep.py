@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import fnmatch
 import os
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -179,11 +180,18 @@ class SolverComparisonSpec(Strict):
         250.0, gt=0, description="a solver × tier × mode slower than this once is skipped"
     )
     skip: list[SkipRule] = Field(default_factory=list)
+    solve_limit_s: float = Field(
+        10.0,
+        gt=0,
+        description="deadline of each solve [s]: a solve still going then (a hung solver) is "
+        "stopped and recorded as failed, the rest of its solver × tier × mode skipped, and the "
+        "comparison goes on",
+    )
     wall_limit_s: float = Field(
         3600.0,
         gt=0,
-        description="wall-clock guard of the whole comparison [s]: a solve that hangs stops it "
-        "there (the rows written so far stay) and the sweep goes on",
+        description="wall-clock guard of the whole comparison [s] (the rows written so far "
+        "stay) and the sweep goes on",
     )
 
 
@@ -874,7 +882,7 @@ def _guarded(
     stays; what it printed goes to ``folder``'s logs)."""
     from threadpoolctl import threadpool_limits
 
-    from wbcbench.bench.guard import call_with_deadline, can_guard
+    from wbcbench.bench.guard import STOPPED_ENV, call_with_deadline, can_guard
     from wbcbench.bench.results import printed_path
 
     if not can_guard():
@@ -882,9 +890,21 @@ def _guarded(
             fn(*args)
         return
     printed = printed_path(folder, what.replace(" ", "_"))
-    outcome = call_with_deadline(as_writer, (str(folder), os.getpid(), fn, args), seconds, printed)
-    if not outcome.ok:
-        print(f"{what}: {outcome.message}")
+    writer = (str(folder), os.getpid(), fn, args)
+    end = time.monotonic() + seconds
+    try:
+        while True:
+            outcome = call_with_deadline(as_writer, writer, end - time.monotonic(), printed)
+            if outcome.ok:
+                return
+            print(f"{what}: {outcome.message}")
+            if not outcome.stalled or time.monotonic() >= end:
+                return
+            # one step outlasted its own deadline: the work resumes in a new child, which
+            # records that step as failed and goes on with the rest
+            os.environ[STOPPED_ENV] = "1"
+    finally:
+        os.environ.pop(STOPPED_ENV, None)
 
 
 def as_writer(folder: str, sweep_pid: int, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from wbcbench.bench.checks import SolverCapture, check_reported
+from wbcbench.bench.guard import report_progress
 from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE, machine_conditions
 from wbcbench.bench.runner import RunRecord, base_row, ended_record
 from wbcbench.bench.sweep import HlsScalingSpec, Job
@@ -125,13 +126,16 @@ def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> 
 
     if not can_guard():
         return run_timing_job(job, rid, version, folder)
-    spec = job.run.scenario.spec
-    window = spec.metrics.window
-    seconds = job.options.get("wall_limit_s") or timing_deadline(
-        window[1] if window is not None else spec.duration, int(job.options["ticks"])
-    )
+    loaded, opts = job.run.scenario, job.options
+    ticks, start = int(opts["ticks"]), float(opts["start"])
+    end = min(loaded.spec.duration, start + ticks * loaded.spec.dt)
+    cached = recording_path(Path(folder), loaded, opts["recorder"], end).exists()
+    recorded = 0 if cached else round(end / loaded.spec.dt)
+    seconds = opts.get("wall_limit_s") or timing_deadline(ticks, recorded)
     args = (job, rid, version, str(folder))
-    outcome = call_with_deadline(run_timing_job, args, seconds, printed_path(folder, rid))
+    doing = f"solver {job.run.settings.solver}"
+    printed = printed_path(folder, rid)
+    outcome = call_with_deadline(run_timing_job, args, seconds, printed, doing=doing)
     if outcome.ok:
         record: RunRecord = outcome.value
         return record
@@ -153,6 +157,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
     check_factor = opts.get("check_factor")
 
     def after_step(i: int, out: Any) -> str:
+        report_progress(i + 1, int(opts["ticks"]))
         totals.append(out.timings.get("total", np.nan))
         if i + 1 == probe and float(np.nanmedian(totals)) > limit:
             raise TooSlow(
