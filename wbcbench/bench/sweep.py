@@ -891,14 +891,15 @@ def _guarded(
         return
     printed = printed_path(folder, what.replace(" ", "_"))
     writer = (str(folder), os.getpid(), fn, args)
-    end = time.monotonic() + seconds
+    end, left = time.monotonic() + seconds, seconds
     try:
         while True:
-            outcome = call_with_deadline(as_writer, writer, end - time.monotonic(), printed)
+            outcome = call_with_deadline(as_writer, writer, left, printed)
             if outcome.ok:
                 return
             print(f"{what}: {outcome.message}")
-            if not outcome.stalled or time.monotonic() >= end:
+            left = end - time.monotonic()
+            if not outcome.stalled or left <= 0:
                 return
             # one step outlasted its own deadline: the work resumes in a new child, which
             # records that step as failed and goes on with the rest
