@@ -266,8 +266,10 @@ def load_sweep_file(path: str | Path) -> tuple[str, SweepSpec]:
     if not p.exists():
         valid = sorted(x.stem for x in SWEEP_DIR.glob("*.yaml"))
         raise UnknownNameError("sweep file", file, valid, hint="or give a path to a YAML file")
+    from wbcbench.scenarios.load import UniqueKeyLoader
+
     try:
-        raw = yaml.safe_load(p.read_text())
+        raw = yaml.load(p.read_text(), Loader=UniqueKeyLoader)
     except yaml.YAMLError as exc:
         raise ScenarioError(file, "", f"not valid YAML: {exc}") from None
     if not isinstance(raw, dict):
@@ -316,7 +318,7 @@ def resolve_scenarios(patterns: Sequence[str], file: str, key: str) -> list[str]
             continue
         try:
             path = resolve_scenario_path(pattern)
-        except UnknownNameError as exc:
+        except (UnknownNameError, ScenarioError) as exc:  # not a scenario, or no such file
             raise ScenarioError(file, f"{key}[{i}]", str(exc)) from None
         name = pattern if pattern in available_scenarios() else str(path)
         if name not in out:
