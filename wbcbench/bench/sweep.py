@@ -36,6 +36,8 @@ from __future__ import annotations
 import dataclasses
 import fnmatch
 import json
+import os
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -183,11 +185,18 @@ class SolverComparisonSpec(Strict):
         250.0, gt=0, description="a solver × tier × mode slower than this once is skipped"
     )
     skip: list[SkipRule] = Field(default_factory=list)
+    solve_limit_s: float = Field(
+        10.0,
+        gt=0,
+        description="deadline of each solve [s]: a solve still going then (a hung solver) is "
+        "stopped and recorded as failed, the rest of its solver × tier × mode skipped, and the "
+        "comparison goes on",
+    )
     wall_limit_s: float = Field(
         3600.0,
         gt=0,
-        description="wall-clock guard of the whole comparison [s]: a solve that hangs stops it "
-        "there (the rows written so far stay) and the sweep goes on",
+        description="wall-clock guard of the whole comparison [s] (the rows written so far "
+        "stay) and the sweep goes on",
     )
 
 
@@ -302,8 +311,10 @@ def load_sweep_file(path: str | Path) -> tuple[str, SweepSpec]:
     if not p.exists():
         valid = sorted(x.stem for x in SWEEP_DIR.glob("*.yaml"))
         raise UnknownNameError("sweep file", file, valid, hint="or give a path to a YAML file")
+    from wbcbench.scenarios.load import UniqueKeyLoader
+
     try:
-        raw = yaml.safe_load(p.read_text())
+        raw = yaml.load(p.read_text(), Loader=UniqueKeyLoader)
     except yaml.YAMLError as exc:
         raise ScenarioError(file, "", f"not valid YAML: {exc}") from None
     if not isinstance(raw, dict):
@@ -352,7 +363,7 @@ def resolve_scenarios(patterns: Sequence[str], file: str, key: str) -> list[str]
             continue
         try:
             path = resolve_scenario_path(pattern)
-        except UnknownNameError as exc:
+        except (UnknownNameError, ScenarioError) as exc:  # not a scenario, or no such file
             raise ScenarioError(file, f"{key}[{i}]", str(exc)) from None
         name = pattern if pattern in available_scenarios() else str(path)
         if name not in out:
@@ -870,7 +881,26 @@ def run_sweep(
     ``failed`` recomputes the planned rows stored as ``failed`` or ``error``, ``all`` every
     planned row (their old rows, metrics and logs are removed first). ``max_jobs`` stops
     after that many computed rows (to test interruption).
+
+    The sweep holds ``out`` for its whole run (:class:`~wbcbench.bench.lock.SweepLock`): it
+    starts only once no earlier sweep on the folder, nor any process one started, is alive.
     """
+    from wbcbench.bench.lock import SweepLock
+
+    with SweepLock(out):
+        return _run_sweep(plan, out, executor, scheduler, show_progress, max_jobs, on_row, rerun)
+
+
+def _run_sweep(
+    plan: SweepPlan,
+    out: str | Path,
+    executor: str,
+    scheduler: str | None,
+    show_progress: bool,
+    max_jobs: int | None,
+    on_row: Callable[[Job, dict[str, Any]], None] | None,
+    rerun: Literal["none", "failed", "all"],
+) -> SweepReport:
     from threadpoolctl import threadpool_limits
     from tqdm import tqdm
 
@@ -1006,7 +1036,7 @@ def _guarded(
     stays; what it printed goes to ``folder``'s logs)."""
     from threadpoolctl import threadpool_limits
 
-    from wbcbench.bench.guard import call_with_deadline, can_guard
+    from wbcbench.bench.guard import STOPPED_ENV, call_with_deadline, can_guard
     from wbcbench.bench.results import printed_path
 
     if not can_guard():
@@ -1014,6 +1044,29 @@ def _guarded(
             fn(*args)
         return
     printed = printed_path(folder, what.replace(" ", "_"))
-    outcome = call_with_deadline(fn, args, seconds, printed)
-    if not outcome.ok:
-        print(f"{what}: {outcome.message}")
+    writer = (str(folder), os.getpid(), fn, args)
+    end, left = time.monotonic() + seconds, seconds
+    try:
+        while True:
+            outcome = call_with_deadline(as_writer, writer, left, printed)
+            if outcome.ok:
+                return
+            print(f"{what}: {outcome.message}")
+            left = end - time.monotonic()
+            if not outcome.stalled or left <= 0:
+                return
+            # one step outlasted its own deadline: the work resumes in a new child, which
+            # records that step as failed and goes on with the rest
+            os.environ[STOPPED_ENV] = "1"
+    finally:
+        os.environ.pop(STOPPED_ENV, None)
+
+
+def as_writer(folder: str, sweep_pid: int, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
+    """``fn(*args)`` in a guarded child that writes to ``folder`` for the sweep ``sweep_pid``,
+    holding the folder's writers' lock (:func:`~wbcbench.bench.lock.hold_as_writer`) until the
+    child ends."""
+    from wbcbench.bench.lock import hold_as_writer
+
+    hold_as_writer(folder, sweep_pid)
+    return fn(*args)

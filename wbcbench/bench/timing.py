@@ -19,6 +19,7 @@ solved but …``.
 from __future__ import annotations
 
 import json
+import os
 import time
 import traceback
 from pathlib import Path
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from wbcbench.bench.checks import SolverCapture, check_reported
+from wbcbench.bench.guard import report_progress
 from wbcbench.bench.provenance import machine_conditions
 from wbcbench.bench.runner import RunRecord, base_row, ended_record
 from wbcbench.bench.sweep import HlsScalingSpec, Job
@@ -123,13 +125,16 @@ def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> 
 
     if not can_guard():
         return run_timing_job(job, rid, version, folder)
-    spec = job.run.scenario.spec
-    window = spec.metrics.window
-    seconds = job.options.get("wall_limit_s") or timing_deadline(
-        window[1] if window is not None else spec.duration, int(job.options["ticks"])
-    )
+    loaded, opts = job.run.scenario, job.options
+    ticks, start = int(opts["ticks"]), float(opts["start"])
+    end = min(loaded.spec.duration, start + ticks * loaded.spec.dt)
+    cached = recording_path(Path(folder), loaded, opts["recorder"], end).exists()
+    recorded = 0 if cached else round(end / loaded.spec.dt)
+    seconds = opts.get("wall_limit_s") or timing_deadline(ticks, recorded)
     args = (job, rid, version, str(folder))
-    outcome = call_with_deadline(run_timing_job, args, seconds, printed_path(folder, rid))
+    doing = f"solver {job.run.settings.solver}"
+    printed = printed_path(folder, rid)
+    outcome = call_with_deadline(run_timing_job, args, seconds, printed, doing=doing)
     if outcome.ok:
         record: RunRecord = outcome.value
         return record
@@ -151,6 +156,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
     check_factor = opts.get("check_factor")
 
     def after_step(i: int, out: Any) -> str:
+        report_progress(i + 1, int(opts["ticks"]))
         totals.append(out.timings.get("total", np.nan))
         if i + 1 == probe and float(np.nanmedian(totals)) > limit:
             raise TooSlow(
@@ -267,7 +273,9 @@ def dump_problems(
                 **({"primer": True} if primer else {}),
             }
             path = target / f"{'prime-' if primer else ''}t{i:05d}-{k:02d}.npz"
-            problem.save(path)
+            part = path.with_name(f".{path.name}")  # atomic: a kill leaves no half file
+            problem.save(part)
+            os.replace(part, path)
             if not primer:
                 saved.append(path)
         return ""

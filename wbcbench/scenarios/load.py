@@ -9,6 +9,7 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import json
+import typing
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,8 +22,10 @@ from pydantic import BaseModel, ValidationError
 from wbcbench.errors import ScenarioError, UnknownNameError, WbcBenchError
 from wbcbench.scenarios.schema import (
     REFERENCE_DIM_FIELD,
+    Boolean,
     ContactSpec,
     PerturbationsSpec,
+    Reference,
     Scenario,
     TaskSpec,
 )
@@ -150,6 +153,10 @@ def _message(err: dict[str, Any], root: type[BaseModel] = Scenario) -> str:
         return f"unknown key {loc[-1]!r}; valid keys: {', '.join(valid)}"
     if kind == "missing":
         return "required key is missing"
+    if isinstance(err.get("input"), Boolean):
+        return f"expected a number, got the boolean {err['input']!r}"
+    if kind == "union_tag_not_found":
+        return f"required key 'type' is missing; valid types: {', '.join(reference_types())}"
     if kind == "union_tag_invalid":
         ctx = err.get("ctx", {})
         return f"unknown type {ctx.get('tag')!r}; valid choices: {ctx.get('expected_tags')}"
@@ -158,6 +165,12 @@ def _message(err: dict[str, Any], root: type[BaseModel] = Scenario) -> str:
         return f"invalid value {err.get('input')!r}; valid choices: {expected}"
     msg = str(err["msg"])
     return msg.removeprefix("Value error, ")
+
+
+def reference_types() -> list[str]:
+    """The ``type`` of every reference trajectory, as a scenario file spells it."""
+    union = typing.get_args(Reference)[0]
+    return [typing.get_args(m.model_fields["type"].annotation)[0] for m in typing.get_args(union)]
 
 
 def validation_error(
@@ -233,11 +246,15 @@ def apply_override(raw: dict[str, Any], assignment: str, file: str) -> None:
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
     """A path, or the name of a scenario in the top-level ``scenarios/`` folder."""
     p = Path(name_or_path)
-    if p.exists():
+    if p.is_file():
         return p
     for candidate in (SCENARIO_DIR / f"{name_or_path}.yaml", SCENARIO_DIR / str(name_or_path)):
-        if candidate.exists():
+        if candidate.is_file():
             return candidate
+    if p.is_dir():
+        raise ScenarioError(str(p), "", "no such file: a folder, not a scenario file")
+    if len(p.parts) > 1 or p.suffix in (".yaml", ".yml"):  # a path, not a scenario's name
+        raise ScenarioError(str(p), "", "no such file")
     raise UnknownNameError(
         "scenario", str(name_or_path), available_scenarios(), hint="or give a path to a YAML file"
     )
@@ -293,6 +310,27 @@ def _fit_window_to_overridden_duration(raw: dict[str, Any], overrides: Sequence[
         metrics["window"] = [min(window[0], duration / 2), duration]
 
 
+class UniqueKeyLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, but a key given twice in one mapping is an error naming both
+    lines (PyYAML keeps the last silently)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            line = key_node.start_mark.line + 1
+            if isinstance(key, typing.Hashable) and key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None,
+                    None,
+                    f"duplicate key {key!r} (first at line {seen[key]})",
+                    key_node.start_mark,
+                )
+            if isinstance(key, typing.Hashable):
+                seen[key] = line
+        return super().construct_mapping(node, deep=deep)
+
+
 def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
     """The YAML mapping in ``path``; every way a file can be unreadable is a ScenarioError
     naming it (a folder, another encoding than UTF-8, binary data, absurd nesting, not YAML)."""
@@ -313,7 +351,7 @@ def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
     if "\x00" in text:
         raise ScenarioError(file, "", f"holds binary data (a NUL byte), not {what}")
     try:
-        raw = yaml.safe_load(text)
+        raw = yaml.load(text, Loader=UniqueKeyLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -373,6 +411,14 @@ def _check_consistency(file: str, spec: Scenario) -> None:
             raise ScenarioError(
                 file, f"contacts[{i}].fmax", f"fmax = {c.fmax:g} N is below fmin = {c.fmin:g} N"
             )
+    if spec.kind == "dynamic" and not spec.contacts:
+        raise ScenarioError(
+            file,
+            "contacts",
+            "a dynamic scenario needs at least one contact: the torque-level controllers hold "
+            "the floating base on its contacts (a robot with none, or a fixed base, is not "
+            "supported)",
+        )
     if spec.duration * spec.control_rate < 1:
         raise ScenarioError(
             file,

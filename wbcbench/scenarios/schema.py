@@ -7,6 +7,8 @@ Checks that need the robot (frame and joint names, keyframes) happen in
 
 from __future__ import annotations
 
+import types
+import typing
 from itertools import pairwise
 from typing import Annotated, Any, Literal
 
@@ -14,10 +16,62 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 Vector = list[float]
 
+#: the largest task priority (levels are numbered from 1, the highest)
+MAX_PRIORITY = 1000
+
+
+def _numeric(ann: Any) -> bool:
+    """Whether a field's annotation holds numbers only (``float``, ``int``, lists, tuples and
+    dict values of them, optional or not)."""
+    if ann in (float, int):
+        return True
+    origin, args = typing.get_origin(ann), typing.get_args(ann)
+    if origin in (typing.Union, types.UnionType):
+        members = [a for a in args if a is not type(None)]
+        return bool(members) and all(_numeric(a) for a in members)
+    if origin in (list, tuple):
+        return bool(args) and all(_numeric(a) for a in args if a is not Ellipsis)
+    if origin is dict:
+        return _numeric(args[1])
+    return False
+
+
+class Boolean:
+    """A YAML boolean found where a number is expected: it fails the number's validation (its
+    error, at the key's path, says so), where pydantic would read ``true`` as 1."""
+
+    def __init__(self, value: bool) -> None:
+        self.value = value
+
+    def __repr__(self) -> str:
+        return str(self.value).lower()
+
+
+def _mark_booleans(value: Any) -> Any:
+    if isinstance(value, bool):
+        return Boolean(value)
+    if isinstance(value, list | tuple):
+        return [_mark_booleans(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _mark_booleans(v) for k, v in value.items()}
+    return value
+
 
 class Strict(BaseModel):
     # every float in a scenario must be finite: NaN or ±inf never describes a set-up
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _numbers_are_not_booleans(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        return {
+            key: _mark_booleans(value)
+            if key in cls.model_fields and _numeric(cls.model_fields[key].annotation)
+            else value
+            for key, value in data.items()
+        }
 
 
 # -- reference trajectories
@@ -131,13 +185,25 @@ class TaskSpec(Strict):
     frame: str | None = None
     axes: list[str] | None = None
     joints: list[str] | None = None
-    priority: int = Field(1, ge=1)
+    priority: int = Field(1, ge=1, le=MAX_PRIORITY, strict=True)
     weight: float | None = Field(None, gt=0)
     kp: float | Vector = 100.0
     kv: float | Vector = 20.0
     reference: Reference | None = None
     absolute: bool = False
     level: Literal["acceleration", "force"] = "acceleration"
+
+    @field_validator("joints")
+    @classmethod
+    def _joints_once(cls, v: list[str] | None) -> list[str] | None:
+        if v is None:
+            return v
+        if not v:
+            raise ValueError("an empty list; name at least one joint, or leave 'joints' out")
+        repeated = sorted({j for j in v if v.count(j) > 1})
+        if repeated:
+            raise ValueError(f"each joint at most once; repeated: {', '.join(repeated)}")
+        return v
 
     @model_validator(mode="after")
     def _consistent(self) -> TaskSpec:
