@@ -350,8 +350,8 @@ def test_a_closed_loop_run_rejects_a_qp_reported_solved_that_is_not(
 
     honest = ControllerContext.new_solver
 
-    def new_solver(self):
-        handle = honest(self)
+    def new_solver(self, kind="task"):
+        handle = honest(self, kind)
         return Liar(handle) if self.solver == "daqp" else handle
 
     monkeypatch.setattr(ControllerContext, "new_solver", new_solver)
