@@ -671,9 +671,7 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
             )
             for controller, _ in controllers:
                 if not controller_class(controller).applies_to(loaded.spec):
-                    run = planner.run(
-                        loaded, controller, dump_solver, mode="hot", timing=True
-                    )
+                    run = planner.run(loaded, controller, dump_solver, mode="hot", timing=True)
                     targets.append((run, options))
     return SweepPlan(
         file, spec, jobs, not_applicable, comparison, targets, comp_solvers, timing_opts
