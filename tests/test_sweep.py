@@ -107,6 +107,11 @@ def plan(path: str):
             ["osqp_libdwbc does not run at tier high"],
         ),
         (
+            "version: 1\nsolver_comparison:\n  dump_solver: dapq\n",
+            "solver_comparison.dump_solver[0]",
+            ["unknown solver 'dapq'", "daqp", "or one of default, native, all"],
+        ),
+        (
             "version: 1\ntracking:\n  - scenarios: [ahn_dof_scaling]\n    check_factor: -1\n",
             "tracking[0].check_factor",
             ["greater than 0"],

@@ -9,6 +9,8 @@
     wbcbench tables RESULTS_DIR      paper tables (Markdown + CSV) in RESULTS_DIR/tables
     wbcbench plots RESULTS_DIR       figures (PNG + SVG) in RESULTS_DIR/figures
     wbcbench solvers RESULTS_DIR     the solver report RESULTS_DIR/solver_report.md
+    wbcbench solvers --sequences EXPORT_DIR [--solver NAME]... [--tier T]... [--mode M]...
+    wbcbench export-qps RESULTS_DIR --out DIR   the dumped QPs as a qpbenchmark test set
     wbcbench replay PROBLEM.npz [--solver NAME]... [--tier T] [--mode M]
 
 Errors a user can cause print one line (``error: …``) and exit with status 2; no traceback.
@@ -395,9 +397,53 @@ def _cmd_plots(args: argparse.Namespace) -> int:
 
 
 def _cmd_solvers(args: argparse.Namespace) -> int:
+    if args.sequences:
+        return _solve_sequences(args)
+    if args.results is None:
+        raise WbcBenchError(
+            "wbcbench solvers: give a results folder (the solver report) or --sequences "
+            "EXPORT_DIR (an export of wbcbench export-qps)"
+        )
     from wbcbench.report.solvers import write_report
 
     print(f"solver report: {write_report(_results_dir(args.results))}")
+    return 0
+
+
+def _solve_sequences(args: argparse.Namespace) -> int:
+    from wbcbench.bench.qp_export import TEST_SET
+    from wbcbench.bench.qp_sequences import sequence_report, solve_sequences
+    from wbcbench.qp import available_backends
+    from wbcbench.qp.settings import check_mode, check_tier
+
+    export = Path(args.sequences)
+    if not (export / f"{TEST_SET}.parquet").exists():
+        raise WbcBenchError(
+            f"{export}: no {TEST_SET}.parquet; make one with wbcbench export-qps RESULTS --out "
+            f"{export}"
+        )
+    tiers, modes = args.tier or ["default"], args.mode or ["hot", "warm"]
+    for tier in tiers:
+        check_tier(tier)
+    for mode in modes:
+        check_mode(mode)
+    solvers = args.solver or available_backends()
+    for s in solvers:
+        _check_solvers([s], "default", "cold")
+    rows = solve_sequences(export, solvers, tiers, modes, show_progress=not args.no_progress)
+    rows.to_csv(export / "sequence_solves.csv", index=False)
+    text = sequence_report(rows, export)
+    (export / "sequence_report.md").write_text(text)
+    print(text)
+    print(f"rows: {export / 'sequence_solves.csv'}")
+    return 0
+
+
+def _cmd_export_qps(args: argparse.Namespace) -> int:
+    from wbcbench.bench.qp_export import export_qps
+
+    summary = export_qps(_results_dir(args.results), args.out, show_progress=not args.no_progress)
+    print("\n".join(summary.lines()))
     return 0
 
 
@@ -567,13 +613,36 @@ def build_parser() -> argparse.ArgumentParser:
     for name, func, text in (
         ("tables", _cmd_tables, "paper tables beside ours (Markdown + CSV)"),
         ("plots", _cmd_plots, "figures (PNG + SVG)"),
-        ("solvers", _cmd_solvers, "the QP solver comparison report"),
     ):
         p = sub.add_parser(name, help=text)
         p.add_argument("results", metavar="RESULTS_DIR", help="a results folder of a sweep")
         if name == "tables":
             p.add_argument("--print", action="store_true", help="print the tables")
         p.set_defaults(func=func)
+
+    p = sub.add_parser(
+        "solvers",
+        help="the QP solver comparison report of a results folder, or (--sequences) the "
+        "backends on an exported test set's sequences, solved tick after tick as a controller",
+    )
+    p.add_argument("results", metavar="RESULTS_DIR", nargs="?", help="a results folder")
+    p.add_argument(
+        "--sequences", metavar="EXPORT_DIR", help="a test set written by wbcbench export-qps"
+    )
+    p.add_argument("--solver", action="append", metavar="NAME", help="a QP backend (repeatable)")
+    p.add_argument("--tier", action="append", help="accuracy tier (repeatable; default: default)")
+    p.add_argument("--mode", action="append", help="hot, warm or cold (repeatable; hot and warm)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_solvers)
+
+    p = sub.add_parser(
+        "export-qps",
+        help="the QPs a sweep dumped, as a qpbenchmark test set (Parquet + TestSet module)",
+    )
+    p.add_argument("results", metavar="RESULTS_DIR", help="a results folder with problems/")
+    p.add_argument("--out", required=True, metavar="DIR", help="where the test set goes")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_export_qps)
 
     p = sub.add_parser(
         "compare",

@@ -181,6 +181,11 @@ class SolverComparisonSpec(Strict):
     dump_ticks: int = Field(4, ge=1, description="consecutive ticks dumped per pair")
     dump_after: int = Field(20, ge=0, description="replayed ticks before the first dump")
     reference_solver: str = "clarabel"
+    dump_solver: str = Field(
+        "default",
+        description="the backend the controllers replay with while their QPs are dumped (a "
+        "hierarchy's lower levels depend on the solutions of the higher ones)",
+    )
     max_solve_ms: float = Field(
         250.0, gt=0, description="a solver × tier × mode slower than this once is skipped"
     )
@@ -705,6 +710,7 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
         check_solver_choices(comparison.solvers, comparison.tiers, comparison.modes, file, key)
         not_applicable += offered_choices(comp_solvers, comparison.tiers, comparison.modes, key)[1]
         resolve_solvers([comparison.reference_solver], file, f"{key}.reference_solver")
+        dump_solver = resolve_solvers([comparison.dump_solver], file, f"{key}.dump_solver")[0]
         if not solver_class(comparison.reference_solver).offers("high", "cold"):
             raise ScenarioError(
                 file,
@@ -721,7 +727,7 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
             )
             for controller, _ in controllers:
                 if not controller_class(controller).applies_to(loaded.spec):
-                    run = planner.run(loaded, controller, mode="hot", timing=True)
+                    run = planner.run(loaded, controller, dump_solver, mode="hot", timing=True)
                     targets.append((run, options))
     pushes = _push_targets(planner, spec.push_recovery, file, not_applicable)
     return SweepPlan(

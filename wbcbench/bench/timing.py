@@ -268,6 +268,8 @@ def dump_problems(
                 "scenario": loaded.name,
                 "scenario_hash": loaded.hash,
                 "controller": controller,
+                "robot": loaded.spec.robot,
+                "dt": loaded.spec.dt,
                 "tick": i,
                 "index": k,
                 **({"primer": True} if primer else {}),
