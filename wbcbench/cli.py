@@ -427,9 +427,11 @@ def _solve_sequences(args: argparse.Namespace) -> int:
         check_tier(tier)
     for mode in modes:
         check_mode(mode)
+    from wbcbench.qp import solver_class
+
     solvers = args.solver or available_backends()
     for s in solvers:
-        _check_solvers([s], "default", "cold")
+        solver_class(s)  # an unknown name fails here, listing the installed ones
     rows = solve_sequences(export, solvers, tiers, modes, show_progress=not args.no_progress)
     rows.to_csv(export / "sequence_solves.csv", index=False)
     text = sequence_report(rows, export)

@@ -300,7 +300,9 @@ def export_qps(
         problem = item.problem
         robot, dt = _scenario_facts(item.scenario, problem.meta, facts)
         level = problem.name or f"qp{item.index}"
-        sequence = f"{item.scenario}/{item.controller}/{item.index:02d}"
+        # one QP of the controller: its index in the tick and its name (a controller whose
+        # number of QPs varies with the tick, as rc_lqp's re-plans, shifts the indices)
+        sequence = f"{item.scenario}/{item.controller}/{item.index:02d}-{_slug(level)}"
         position = positions.get(sequence, 0)
         positions[sequence] = position + 1
         form = qpsolvers_form(problem)
