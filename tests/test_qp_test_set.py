@@ -128,7 +128,8 @@ def test_the_export_is_in_qpbenchmarks_layout_with_named_ordered_sequences(expor
         assert g["qp"].nunique() == 1
     assert frame["sequence"].nunique() == 1 + frame[frame["controller"] == "hqp"]["qp"].nunique()
     first = frame.iloc[0]
-    assert first["name"] == f"tocabi_like-tocabi_stand_sway-hqp-{first['qp']}-t00002"
+    assert first["name"] == f"tocabi_like-tocabi_stand_sway-hqp-00-{first['qp']}-t00002"
+    assert frame["name"].is_unique
     assert (frame["deadline_s"] == 1e-3).all() and (frame["robot"] == "tocabi_like").all()
     # P is n × n, flattened row-major, as qpbenchmark's ProblemList stores it
     n = int(first["n"])

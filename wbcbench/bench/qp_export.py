@@ -310,9 +310,10 @@ def export_qps(
         flat = {
             k: None if v is None else np.asarray(v, dtype=float).ravel() for k, v in form.items()
         }
-        name = "-".join(
-            _slug(s) for s in (robot, item.scenario, item.controller, level, f"t{item.tick:05d}")
-        )
+        # unique within the set (qpbenchmark keys its results by name): a tick may hold two QPs
+        # of one name, so the QP's index in the tick is part of it
+        parts = (robot, item.scenario, item.controller, f"{item.index:02d}", level)
+        name = "-".join([*(_slug(p) for p in parts), f"t{item.tick:05d}"])
         rows.append(
             {
                 **flat,
