@@ -247,7 +247,9 @@ class Controller(ABC):
             _native.core()  # fails here, with why, where the module is not built
             if ctx.schedule is not None:
                 raise ControllerError(native_schedule_refusal(self.name))
-        self.active_contacts = tuple(range(len(ctx.contacts)))
+        # with a schedule, the first tick selects (and rebuilds what depends on the set)
+        self.active_contacts = (-1,) if ctx.schedule else tuple(range(len(ctx.contacts)))
+        self.active_tasks = list(ctx.tasks)
 
     def start(self, state: RobotState) -> None:
         """Called once with the initial state: fixes the tasks' initial values."""
@@ -269,6 +271,9 @@ class Controller(ABC):
     nc: int
     #: the active contacts' indices into ``ctx.contacts`` (all of them without a schedule)
     active_contacts: tuple[int, ...] = ()
+    #: the tasks of the tick: the context's, but for those that drive the frame of a scheduled
+    #: contact while it is active (a swing task leaves the QPs while its foot stands)
+    active_tasks: list[Task]
 
     def select_contacts(self, t: float) -> ContactPhase | None:
         """Make the contacts active at ``t`` the ones this tick holds (with a schedule).
@@ -293,6 +298,11 @@ class Controller(ABC):
         contacts, Cw, lw, uw, rows, fmax = entry
         changed = phase.active != self.active_contacts
         self.frames = [c.frame for c in contacts]
+        if changed:
+            held = set(self.frames)
+            self.active_tasks = [
+                task for task in self.ctx.tasks if getattr(task, "frame", None) not in held
+            ]
         self.Cw, self.nc = Cw, 6 * len(contacts)
         self.lw, self.uw = np.empty_like(lw), np.empty_like(uw)
         schedule.scale_bounds(phase, rows, fmax, lw, uw, self.lw, self.uw)
@@ -315,7 +325,7 @@ class Controller(ABC):
         return out
 
     def evaluate_tasks(self, state: RobotState, t: float) -> list[TaskTerm]:
-        return [task.evaluate(state, t) for task in self.ctx.tasks]
+        return [task.evaluate(state, t) for task in self.active_tasks]
 
     def close(self) -> None:  # noqa: B027 - an optional hook: most controllers hold nothing
         """Release what the controller holds beyond memory (worker processes, shared memory).
