@@ -38,6 +38,7 @@ from wbcbench.robots.loader import Robot, simulation_model, welded_bodies
 from wbcbench.runs import Run
 from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import LoadedScenario, sole_boxes, torque_limits
+from wbcbench.tasks.schedule import ContactSchedule
 
 STAGES = ("dynamics", "build", "solve", "solve_internal", "total")
 LOST_CONTACT_TICKS = 50
@@ -405,8 +406,20 @@ def run_closed_loop(
         contact_frames=frames,
         tau_max=tau_max,
         task_parts=task_parts,
-        walk=None if schedule is None or schedule.plan is None else schedule.plan.to_dict(),
+        walk=walk_record(schedule),
     )
+
+
+def walk_record(schedule: ContactSchedule | None) -> dict[str, Any] | None:
+    """The walk a run followed as plain data: the plan (:meth:`WalkPlan.to_dict`) and its
+    confirmed touchdowns ``landings`` (frame, time [s], distance to the footstep [m])."""
+    if schedule is None or schedule.plan is None:
+        return None
+    out = schedule.plan.to_dict()
+    out["landings"] = [
+        {"foot": foot, "t": t, "error": error} for foot, t, error in schedule.landings
+    ]
+    return out
 
 
 def torque_excess(tau: np.ndarray, tau_max: np.ndarray, joints: tuple[str, ...]) -> str:

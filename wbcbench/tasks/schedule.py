@@ -97,6 +97,8 @@ class ContactSchedule:
         self.confirmed: dict[tuple[int, int], float] = {}
         #: set by the first :meth:`observe`: touchdowns then wait for load
         self.observing = False
+        #: (frame, time [s], distance to the target [m]) of each confirmed touchdown with one
+        self.landings: list[tuple[str, float, float]] = []
 
     @property
     def frames(self) -> list[str]:
@@ -148,6 +150,7 @@ class ContactSchedule:
                     target = c.targets[k]
                     if target is not None:
                         miss = float(np.linalg.norm(np.asarray(positions[i]) - target))
+                        self.landings.append((c.frame, t, miss))
                         if miss > self.landing_tolerance:
                             where = ", ".join(f"{v:.3f}" for v in target)
                             return (
