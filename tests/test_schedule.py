@@ -106,16 +106,6 @@ def test_walk_foot_with_its_own_schedule(tmp_path: Path) -> None:
     )
 
 
-def test_walk_longer_than_the_run(tmp_path: Path) -> None:
-    raw = raw_of(WALK)
-    raw["duration"] = 8.0
-    raw["metrics"]["window"] = [0.0, 8.0]
-    assert error_of(tmp_path, raw) == (
-        "duration: 8 s ends before the walk, which comes to rest at 12.7 s; set duration to at "
-        "least 12.7 or walk fewer steps"
-    )
-
-
 def test_walk_names_a_com_task(tmp_path: Path) -> None:
     raw = raw_of(WALK)
     raw["walk"]["com_task"] = "centre"

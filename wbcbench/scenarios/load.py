@@ -479,16 +479,8 @@ def _check_walk(file: str, spec: Scenario) -> None:
                     f"walk.footsteps[{j}].foot",
                     f"{step.foot!r} steps twice in a row; the feet alternate",
                 )
-    from wbcbench.scenarios.walk import nominal_plan
-
-    end = nominal_plan(walk).duration
-    if end > spec.duration + 1e-9:
-        raise ScenarioError(
-            file,
-            "duration",
-            f"{spec.duration:g} s ends before the walk, which comes to rest at {end:g} s; set "
-            f"duration to at least {end:g} or walk fewer steps",
-        )
+    # a duration shorter than the walk cuts it (a sweep's max_duration does): the run's
+    # metrics then count the steps it completed of those planned
 
 
 def _check_schedule(file: str, spec: Scenario) -> None:
