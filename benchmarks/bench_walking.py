@@ -13,20 +13,30 @@ import argparse
 import os
 import time
 
+import numpy as np
+
 from wbcbench.bench.run_metrics import run_metrics
+from wbcbench.report.walking import walk_figure
 from wbcbench.runs import plan_run
 from wbcbench.scenarios.load import build_contacts
 from wbcbench.sim.closed_loop import run_closed_loop
+from wbcbench.tasks.walking import WalkPlan
 
 CONTROLLERS = ["qp_wbc", "hqp", "to_osf", "osf_hqp", "lqp", "rc_lqp"]
 
 
-def walk_row(controller: str, solver: str, overrides: list[str]) -> str:
+def walk_row(controller: str, solver: str, overrides: list[str], figure: str = "") -> str:
     run = plan_run("tocabi_walk", controller, solver, overrides=overrides)
     t0 = time.perf_counter()
     result = run_closed_loop(run)
     wall = time.perf_counter() - t0
     spec = run.scenario.spec
+    if figure and result.walk is not None:
+        log = result.log.arrays()
+        com = np.column_stack([log["com.x"], log["com.y"]])
+        title = f"tocabi_walk · {controller} · {solver}: plan and simulated CoM"
+        fig = walk_figure(WalkPlan.from_dict(result.walk), measured={"CoM": com}, title=title)
+        fig.savefig(figure, dpi=110, bbox_inches="tight")
     metrics = {
         (m.task, m.metric): m.value
         for m in run_metrics(
@@ -56,6 +66,7 @@ def main() -> None:
     parser.add_argument("--controllers", default=",".join(CONTROLLERS))
     parser.add_argument("--solver", default="daqp")
     parser.add_argument("--set", action="append", default=[], help="scenario override")
+    parser.add_argument("--figure", default="", help="save the first controller's walk here")
     args = parser.parse_args()
     print(f"load before: {os.getloadavg()}")
     print(
@@ -64,8 +75,9 @@ def main() -> None:
         "p99 [ms] | wall [s] |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for controller in args.controllers.split(","):
-        print(walk_row(controller, args.solver, args.set), flush=True)
+    for i, controller in enumerate(args.controllers.split(",")):
+        figure = args.figure if i == 0 else ""
+        print(walk_row(controller, args.solver, args.set, figure), flush=True)
     print(f"load after: {os.getloadavg()}")
 
 
