@@ -12,10 +12,10 @@ LOCK              := requirements/lock.txt
 PIP_VERSION       := 26.3
 PIP_TOOLS_VERSION := 7.6.2
 LOCK_VENV         := .venv-lock
-LOCK_FLAGS        := --extra dev --extra robots --extra peers --all-build-deps --allow-unsafe --strip-extras \
+LOCK_FLAGS        := --extra dev --extra robots --extra peers --extra qpbench --all-build-deps --allow-unsafe --strip-extras \
                      --no-emit-index-url --no-emit-find-links --no-emit-trusted-host
 
-.PHONY: venv native test test-numerics test-fast lint bench bench-full bench-micro reference models clean lock upgrade
+.PHONY: venv native test test-numerics test-fast lint bench bench-full bench-micro qp-test-set reference models clean lock upgrade
 
 venv: $(STAMP)
 
@@ -98,6 +98,13 @@ bench-full: $(STAMP)
 # the micro-benchmarks are bench_*.py files: name them for pytest explicitly
 bench-micro: $(STAMP)
 	$(PY) -m pytest -q benchmarks -o python_files="bench_*.py" --benchmark-enable --benchmark-only
+
+# The QP test set for solver developers: dump whole tick sequences, export them in qpbenchmark's
+# layout (results/qp_test_set/), then solve them tick after tick with every backend.
+qp-test-set: $(STAMP)
+	$(VENV)/bin/wbcbench sweep sweeps/qp_test_set.yaml --out results/qp_sequences --executor serial
+	$(VENV)/bin/wbcbench export-qps results/qp_sequences --out results/qp_test_set
+	$(VENV)/bin/wbcbench solvers --sequences results/qp_test_set
 
 # the small curated results the notebooks and the report tests read (results/reference/)
 reference: $(STAMP)

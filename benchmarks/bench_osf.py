@@ -11,14 +11,24 @@ beside ours; ``make bench-micro`` runs the pytest-benchmark entries.
   planes and 1…5 tasks.
 * COD vs SVD: parameter time of the dynamically consistent inverse, 5 tasks, two feet.
 * Table 3 (``lee2021access_table3``): hqp vs to_osf step time for 1…5 tasks, double support.
+
+``--authors-cycle`` times the OSF-HQP cycle of the authors' own library instead
+(``libdwbc_osf_cycle``: pelvis 6-D, then upper-body rotation 3-D, then the contact-wrench QP,
+``params: periodic:1``), native, per stage, with each qpOASES usage and DAQP, beside the stage
+times of libdwbc built and run on a 2-vCPU AMD EPYC VM (:data:`LIBDWBC_CYCLE`); then Table I
+with ``params: inline`` (osf_hqp and to_osf, median and p99) and the Table III ratio with
+``qpoases_libdwbc`` per level, each over the same recorded states in one run. docs/qpoases.md
+explains the numbers.
 """
 
 from __future__ import annotations
 
+import argparse
 import functools
 import os
 from typing import Any
 
+import numpy as np
 import pytest
 import scipy.linalg  # noqa: F401  (its BLAS must be loaded before threads are limited)
 from threadpoolctl import threadpool_limits
@@ -51,10 +61,16 @@ def medians(
     controller: str,
     config: dict[str, Any],
     solver: str = SOLVER,
+    mode: str = "cold",
+    ticks: dict[str, np.ndarray] | None = None,
 ) -> dict[str, float]:
     """Median [µs] of every stage the controller reports, over the recording; ``<stage>.iqr``
-    and ``<stage>.p99`` beside each."""
-    timings = replay(plan_run(loaded, controller, solver, config=config, timing=True), rec)
+    and ``<stage>.p99`` beside each. ``ticks``, when given, receives every stage's per-tick
+    seconds."""
+    run = plan_run(loaded, controller, solver, mode=mode, config=config, timing=True)
+    timings = replay(run, rec)
+    if ticks is not None:
+        ticks.update({stage: x[WARMUP:] for stage, x in timings.stages.items()})
     out = {stage: timings.median_us(stage, WARMUP) for stage in timings.stages}
     for stage in timings.stages:
         q25, q75 = (timings.quantile_us(stage, q, WARMUP) for q in (0.25, 0.75))
@@ -65,14 +81,16 @@ def medians(
 
 
 @functools.cache
-def table3_iros(solver: str = SOLVER, impl: str = "native") -> dict[str, dict[str, float]]:
+def table3_iros(
+    solver: str = SOLVER, impl: str = "native", mode: str = "cold"
+) -> dict[str, dict[str, float]]:
     """Table III's controllers on the same states, both in the given impl."""
     loaded, rec = recording("lee2021iros_table1", 3.0, 4.0)
     osf = {"params": "inline", "impl": impl}
     return {
-        "osf_hqp_cod": medians(loaded, rec, "osf_hqp", osf, solver),
-        "osf_hqp_svd": medians(loaded, rec, "osf_hqp", {**osf, "inverse": "svd"}, solver),
-        "hqp": medians(loaded, rec, "hqp", {"finals": ["wrench"], "impl": impl}, solver),
+        "osf_hqp_cod": medians(loaded, rec, "osf_hqp", osf, solver, mode),
+        "osf_hqp_svd": medians(loaded, rec, "osf_hqp", {**osf, "inverse": "svd"}, solver, mode),
+        "hqp": medians(loaded, rec, "hqp", {"finals": ["wrench"], "impl": impl}, solver, mode),
     }
 
 
@@ -201,7 +219,152 @@ def table3_iros_table(t: dict[str, dict[str, float]], solver: str, impl: str) ->
     print()
 
 
+# -- the authors' cycle -----------------------------------------------------------------------
+
+#: libdwbc's OSF-HQP cycle (example/main.cpp's loop: kinematics and dynamics, contact space,
+#: two task QPs, the contact QP) built from the authors' repository and run on a 2-vCPU AMD EPYC
+#: VM of this project's kind, with qpOASES: the range of medians over its runs [µs]
+LIBDWBC_CYCLE: dict[str, tuple[float, float]] = {
+    "kinematics + dynamics": (43, 45),
+    "contact space (params)": (78, 81),
+    "task QPs": (104, 110),
+    "contact QP": (14, 15),
+    "total": (240, 252),
+}
+
+#: (solver, mode) of the cycle and of Table I: qpOASES as `wbcbench run` calls it by default
+#: (cold: CasADi's usage on a fresh object every tick), CasADi's usage hot, the authors' usage,
+#: and DAQP
+USAGES: tuple[tuple[str, str], ...] = (
+    ("qpoases", "cold"),
+    ("qpoases", "hot"),
+    ("qpoases_libdwbc", "hot"),
+    ("daqp", "cold"),
+    ("daqp", "hot"),
+)
+#: Table I leaves cold qpOASES out: its initial homotopy takes 10-90 ms a tick on to_osf's QP
+#: (benchmarks/bench_qpoases.py measures it per level)
+TABLE1_USAGES = tuple(u for u in USAGES if u != ("qpoases", "cold"))
+
+
+def cycle_stages(r: dict[str, float]) -> dict[str, tuple[float, float]]:
+    """Our stages in the authors' split (median, p99) [µs]: dynamics; parameters; the task QPs
+    (solve of T1 and T2, with the build of their data); the contact QP; total."""
+    tasks = r["solve.T1"] + r["solve.T2"] + r["build"]
+    return {
+        "kinematics + dynamics": (r["dynamics"], r["dynamics.p99"]),
+        "contact space (params)": (r["params"], r["params.p99"]),
+        "task QPs": (tasks, float("nan")),
+        "contact QP": (r["solve.wrench"], r["solve.wrench.p99"]),
+        "total": (r["total"], r["total.p99"]),
+    }
+
+
+def authors_cycle(repeats: int) -> None:
+    """libdwbc's OSF-HQP cycle, native, per stage, each usage ``repeats`` times interleaved."""
+    loaded, rec = recording("libdwbc_osf_cycle", 0.0, 2.0)
+    print(
+        f"The authors' OSF-HQP cycle (libdwbc_osf_cycle, {len(rec)} recorded states, native, "
+        "params periodic:1), median [µs] (p99) per run"
+    )
+    runs: dict[tuple[str, str], list[dict[str, float]]] = {u: [] for u in USAGES}
+    for _ in range(repeats):
+        for solver, mode in USAGES:
+            if solver in available_solvers():
+                cfg = {"impl": "native", "params": "periodic:1"}
+                runs[(solver, mode)].append(medians(loaded, rec, "osf_hqp", cfg, solver, mode))
+    head = "".join(f"{s + ' ' + m:>26}" for (s, m), r in runs.items() if r)
+    print(f"{'stage':<24}{'libdwbc (EPYC VM)':>20}{head}")
+    for stage, (lo, hi) in LIBDWBC_CYCLE.items():
+        cells = ""
+        for r in runs.values():
+            if not r:
+                continue
+            vals = [cycle_stages(x)[stage] for x in r]
+            med = " / ".join(f"{v[0]:.0f}" for v in vals)
+            p99 = max(v[1] for v in vals)
+            cells += f"{med + (f' ({p99:.0f})' if p99 == p99 else ''):>26}"
+        print(f"{stage:<24}{f'{lo:.0f}-{hi:.0f}':>20}{cells}")
+    fails = {f"{s} {m}": sum(x["failures"] for x in r) for (s, m), r in runs.items() if r}
+    print(f"failures: {fails}")
+    print()
+
+
+def table1_inline(repeats: int) -> None:
+    """OSF-HQP Table I, closed-loop states 0-5 s, native, params inline: osf_hqp and to_osf."""
+    loaded, rec = recording("lee2021iros_table1", 0.0, 5.0)
+    print(
+        f"Table I (lee2021iros_table1, {len(rec)} recorded states, native, params inline): "
+        "median (p99) total and QP time [µs], per run"
+    )
+    print(f"{'usage':<22}{'osf_hqp total':>24}{'QP':>16}{'to_osf total':>24}{'QP':>16}")
+    for solver, mode in TABLE1_USAGES:
+        if solver not in available_solvers():
+            continue
+        for _ in range(repeats):
+            cells = ""
+            for controller in ("osf_hqp", "to_osf"):
+                cfg = {"impl": "native", "params": "inline"}
+                r = medians(loaded, rec, controller, cfg, solver, mode)
+                cells += f"{r['total']:>14.0f} ({r['total.p99']:>6.0f}){r['solve']:>16.0f}"
+                if r["failures"]:
+                    cells += f" [{r['failures']:.0f} failed]"
+            print(f"{solver + ' ' + mode:<22}{cells}")
+    print()
+
+
+def table3_libdwbc() -> None:
+    """Table III with the paper's solver as its authors run it: hqp / osf_hqp per level, the
+    ratio of medians and its interquartile range over the ticks (same states)."""
+    loaded, rec = recording("lee2021iros_table1", 3.0, 4.0)
+    solver, mode = "qpoases_libdwbc", "hot"
+    ht: dict[str, np.ndarray] = {}
+    ot: dict[str, np.ndarray] = {}
+    h = medians(loaded, rec, "hqp", {"finals": ["wrench"], "impl": "native"}, solver, mode, ht)
+    o = medians(loaded, rec, "osf_hqp", {"params": "inline", "impl": "native"}, solver, mode, ot)
+    print(f"OSF-HQP Table III with {solver} (hot), {len(rec)} recorded states, both native")
+    print(f"{'level':<8}{'hqp':>9}{'osf_hqp':>9}{'ratio':>7}{'per-tick IQR':>16}   paper [ms]")
+    for lv in ("T1", "T2", "T3", "T4", "wrench"):
+        hk = "solve.wrench" if lv == "wrench" else f"solve.L{lv[1:]}"
+        hk = hk if hk in ht else f"solve.{lv}"
+        ok = f"solve.{lv}"
+        if hk not in ht or ok not in ot:
+            continue
+        q = np.quantile(ht[hk] / ot[ok], [0.25, 0.75])
+        print(
+            f"{lv:<8}{h[hk]:9.1f}{o[ok]:9.1f}{h[hk] / o[ok]:7.1f}{f'[{q[0]:.1f}, {q[1]:.1f}]':>16}"
+            f"   {PAPER_CONV[lv]:.3f} / {PAPER_T3[lv]:.3f} ({PAPER_CONV[lv] / PAPER_T3[lv]:.1f}x)"
+        )
+    q = np.quantile(ht["solve"] / ot["solve"], [0.25, 0.75])
+    print(
+        f"{'QP sum':<8}{h['solve']:9.1f}{o['solve']:9.1f}{h['solve'] / o['solve']:7.1f}"
+        f"{f'[{q[0]:.1f}, {q[1]:.1f}]':>16}   9.263 / 0.303 (30.5x)"
+    )
+    print(f"failures: hqp {h['failures']:.0f}, osf_hqp {o['failures']:.0f}")
+    print()
+
+
+def authors(repeats: int) -> None:
+    print(f"load average {os.getloadavg()[0]:.2f} (2-core machine: compare within one run)")
+    authors_cycle(repeats)
+    table1_inline(repeats)
+    table3_libdwbc()
+    print(f"load average {os.getloadavg()[0]:.2f}")
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--authors-cycle",
+        action="store_true",
+        help="the authors' OSF-HQP cycle per stage, Table I inline and Table III with the "
+        "paper's solver as they run it (qpoases_libdwbc)",
+    )
+    parser.add_argument("--repeats", type=int, default=3, help="runs per usage (--authors-cycle)")
+    args = parser.parse_args()
+    if args.authors_cycle:
+        authors(args.repeats)
+        return
     print(f"load average {os.getloadavg()[0]:.2f} (2-core machine: compare within one run)")
     for solver in ("daqp", "qpoases"):
         if solver not in available_solvers():

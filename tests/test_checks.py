@@ -76,8 +76,8 @@ def lying_daqp(monkeypatch: pytest.MonkeyPatch) -> Callable[[str], None]:
     def install(lie: str) -> None:
         honest = ControllerContext.new_solver
 
-        def new_solver(self: ControllerContext) -> Any:
-            handle = honest(self)
+        def new_solver(self: ControllerContext, kind: str = "task") -> Any:
+            handle = honest(self, kind)
             return Liar(handle, LIES[lie]) if self.solver == "daqp" else handle
 
         monkeypatch.setattr(ControllerContext, "new_solver", new_solver)
@@ -170,7 +170,7 @@ def captured_step(controller: str, solver: str) -> list[tuple[Problem, Any]]:
     ctx = scenario_context(loaded, robot, solver=solver, mode="hot")
     pairs: list[tuple[Problem, Any]] = []
     honest = ctx.new_solver
-    ctx.new_solver = lambda: SolverCapture(honest(), pairs)  # type: ignore[method-assign]
+    ctx.new_solver = lambda kind="task": SolverCapture(honest(kind), pairs)  # type: ignore[method-assign]
     ctrl = make_controller(controller, ctx, {"impl": "native", "solver_calls": "native"})
     q, v = robot.keyframe("stand")
     ctrl.start(RobotState(robot, q, v))

@@ -1,5 +1,6 @@
-"""MuJoCo and Pinocchio must describe the same multibody: mass matrix, bias forces and frame
-placements agree to 1e-9 over random states, for the generated robots and for a URDF."""
+"""MuJoCo and Pinocchio must describe the same multibody: mass matrix, bias forces, frame
+placements and frame Jacobians agree to round-off over random states, for every shipped robot
+(generated, third-party, the example plugin's) and for a URDF."""
 
 from __future__ import annotations
 
@@ -20,10 +21,21 @@ from wbcbench.robots.convert import (
     pin_to_mj,
     torque_to_ctrl,
 )
-from wbcbench.robots.loader import Robot, load_robot
+from wbcbench.robots.loader import Robot, available_robots, load_robot, third_party_robots
+from wbcbench.robots.parity import PARITY_TOLERANCE, model_parity
 
 TOL = 1e-9
 N_STATES = 100
+
+EXAMPLE_BIPED = (
+    Path(__file__).parents[1]
+    / "examples/plugin/src/wbcbench_example_plugin/models/example_biped.xml"
+)
+SHIPPED = [
+    *available_robots(),
+    *(name for name, missing in third_party_robots().items() if not missing),
+    str(EXAMPLE_BIPED),
+]
 
 
 @functools.cache
@@ -83,6 +95,14 @@ def parity_errors(robot: Robot, n_states: int, seed: int = 0) -> dict[str, float
             )
             err["frames"] = max(err["frames"], e)
     return err
+
+
+@pytest.mark.parametrize("name", SHIPPED, ids=lambda n: Path(n).stem)
+def test_shipped_robot_parity_of_mass_bias_and_jacobians(name: str) -> None:
+    """M(q), the bias forces and every site's and body's Jacobian, relative to the largest
+    entry of MuJoCo's, agree to PARITY_TOLERANCE (1e-12) at 10 random states."""
+    parity = model_parity(load_robot(name), states=10, seed=4)
+    assert parity.worst <= PARITY_TOLERANCE, parity
 
 
 @pytest.mark.parametrize("name", ["tocabi_like", "comanplus_like"])

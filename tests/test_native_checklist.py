@@ -1,11 +1,11 @@
-"""README's "Adding a native controller", kept true.
+"""docs/native.md's "Adding a native controller", kept true.
 
 * A controller declared as the checklist says (its Python half is a :class:`NativeController`
   declaration, its tick an existing C++ type, so nothing is compiled here) runs through the
   same native-vs-python assertions as the real ones (:func:`tests.test_native_equality.compare`).
 * Every registered controller with a native tick has what the checklist names: its tick in
   ``src/controllers/<name>.hpp`` and ``.cpp``, its binding in ``src/bind/<name>.cpp`` registered
-  in the module's controller layer, and an equality test; the README names the same pieces.
+  in the module's controller layer, and an equality test; docs/native.md names the same pieces.
 * Where the module is not built, every entry point raises the one error with the one message.
 """
 
@@ -218,9 +218,9 @@ def test_the_module_binds_every_registered_part_once_in_layer_order() -> None:
         assert hasattr(_native.core(), CONTROLLERS[name].tick_type)
 
 
-def test_the_readme_names_what_the_checklist_test_checks() -> None:
-    text = (ROOT / "README.md").read_text()
-    start = text.index("### Adding a native controller")
+def test_the_docs_name_what_the_checklist_test_checks() -> None:
+    text = (ROOT / "docs" / "native.md").read_text()
+    start = text.index("## Adding a native controller")
     section = text[start : text.find("\n## ", start)]
     for piece in (
         "wbcbench/_native/src/controllers/<name>.hpp",

@@ -36,7 +36,7 @@ from wbcbench.controllers.base import Controller
 from wbcbench.controllers.registry import make_controller
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
-from wbcbench.qp import Problem
+from wbcbench.qp import Problem, available_solvers
 from wbcbench.qp.settings import TIER_EPS as TIERS_EPS
 from wbcbench.robots.loader import load_robot
 from wbcbench.runs import scenario_context
@@ -81,13 +81,20 @@ ITERATIVE = {"osqp": 1e-4, "clarabel": 3e-5, "piqp": 3e-5, "proxqp": 2e-4, "high
 
 
 def build_pair(
-    name: str, scenario: str, solver: str, config: dict[str, Any], tier: str = "high"
+    name: str,
+    scenario: str,
+    solver: str,
+    config: dict[str, Any],
+    tier: str = "high",
+    mode: str = "cold",
 ) -> dict[str, Any]:
     loaded = load_scenario(scenario)
     robot = load_robot(loaded.spec.robot)
     out: dict[str, Any] = {"robot": robot, "loaded": loaded}
     for impl in ("python", "native"):
-        ctx = scenario_context(loaded, robot, solver=solver, tier=tier, keep_problems=True)
+        ctx = scenario_context(
+            loaded, robot, solver=solver, tier=tier, mode=mode, keep_problems=True
+        )
         out[impl] = make_controller(name, ctx, {**config, "impl": impl})
     return out
 
@@ -251,6 +258,37 @@ def test_native_equals_python(name: str, config: dict[str, Any], solver: str, ca
         data_tolerance=DATA_TOLERANCE[name],
         iterative=solver.removeprefix("qpsolvers:") in ITERATIVE,
         max_skipped=4 if solver.removeprefix("qpsolvers:") == "osqp" else 2,
+        torque_rows=name == "to_osf",
+    )
+    assert worst <= 1.0
+
+
+@pytest.mark.skipif(
+    "qpoases_libdwbc" not in available_solvers(), reason="qpoases_libdwbc not available"
+)
+@pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.parametrize(
+    "name,config",
+    [(name, cfg) for name, cfgs in CONTROLLERS.items() for cfg in cfgs],
+    ids=lambda x: x if isinstance(x, str) else "-".join(map(str, x.values())),
+)
+def test_native_equals_python_qpoases_libdwbc(name: str, config: dict[str, Any], case: str) -> None:
+    """The named setting at its own tier and mode (default, hot): one qpOASES object per QP
+    kept from state to state on both impls, the same answers (an active-set method: exact up to
+    the data's round-off)."""
+    if case == "force_level" and name == "qp_wbc":
+        pytest.skip("the weighted QP has no force-level form (it tracks such a task as a motion)")
+    scenario, keyframe = CASES[case]
+    pair = build_pair(name, scenario, "qpoases_libdwbc", config, tier="default", mode="hot")
+    worst = compare(
+        pair,
+        keyframe,
+        n_states=4,
+        seed=7,
+        tolerance=1e-8,
+        data_tolerance=DATA_TOLERANCE[name],
+        iterative=False,
+        max_skipped=0,
         torque_rows=name == "to_osf",
     )
     assert worst <= 1.0

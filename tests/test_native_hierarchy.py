@@ -29,6 +29,12 @@ way. So, on each state both impls solve:
 * with an active-set backend, τ, q̈ and f agree to 10 times the spread the Python strategies
   show on the same states (at least 1e-8), wherever the other strategy solves; an iterative
   backend's answers move with its stopping point, which the slacks and the checks above bound.
+  The Goldfarb–Idnani backends (quadprog, qpmad, eiquadprog) need a positive definite Hessian
+  and solve a semidefinite level as H + δI with the smallest δ = 1e-12 · 100ᵏ · max(1, |H_ii|)
+  that factorises: whether the Cholesky factorisation of a numerically singular H succeeds at
+  a given δ is decided by rounding, so each impl may solve a level regularised by another δ,
+  and their answers agree to at least 1e-5 (measured: 1.5e-6 with quadprog on a wall state
+  where the strategies' spread is 1.1e-8).
 
 A backend may fail on a state in one impl and not the other, or at another level: rounding-
 level differences of the data meet its stopping rule differently (PIQP through qpsolvers stops
@@ -197,6 +203,11 @@ SLOW: dict[tuple[str, str], set[str]] = {
 }
 
 
+#: backends that solve a semidefinite level Hessian as H + δI with the smallest δ whose
+#: Cholesky factorisation succeeds: which δ is decided by rounding, in each impl on its own
+#: (see the module docstring)
+REGULARISING = ("quadprog", "qpmad", "eiquadprog")
+
 #: a level QP the backend itself gave up on or declared infeasible (see the module docstring)
 BACKEND_VERDICT = re.compile(
     r"level '[^']+': \S+: (max_iter|infeasible|numerical): "
@@ -280,8 +291,9 @@ def test_native_equals_python(
             pairs = zip((a.tau, a.qdd, a.wrench), (b.tau, b.qdd, b.wrench), strict=True)
             compared.append(max(relative(x, y) for x, y in pairs))
     if spread_known:  # (the other strategy may fail on every state with some backends)
+        floor = 1e-5 if backend in REGULARISING else 1e-8
         for diff in compared:
-            assert diff <= max(1e-8, 10 * spread), (diff, spread)
+            assert diff <= max(floor, 10 * spread), (diff, spread)
     if not both_solved:
         pytest.skip(
             f"{solver} solved none of the states in both impls: each answer an impl gave was "

@@ -14,7 +14,7 @@ import pytest
 
 from wbcbench import _native
 from wbcbench.controllers.native import qp_view
-from wbcbench.qp import Problem, available_solvers, check_solution, make_solver
+from wbcbench.qp import Problem, available_solvers, check_solution, make_solver, solver_class
 from wbcbench.qp.settings import MODES
 
 pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
@@ -26,6 +26,7 @@ CASES = [
     ("osqp", "high"),
     ("osqp_libdwbc", "default"),
     ("qpoases", "default"),
+    ("qpoases_libdwbc", "default"),
     ("eiquadprog", "default"),
 ]
 
@@ -83,7 +84,8 @@ def fill(buf: Any, problem: Problem) -> None:
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize(("solver", "tier"), CASES, ids=[f"{s}-{t}" for s, t in CASES])
 def test_native_solver_equals_python(solver: str, tier: str, mode: str, box: bool) -> None:
-    py = make_solver(solver, tier=tier, mode=mode if solver != "osqp_libdwbc" else "hot")
+    offered = solver_class(solver).offers(tier, mode)
+    py = make_solver(solver, tier=tier, mode=mode if offered else "hot")
     cpp = py.native_solver()
     assert cpp is not None
     buf = _native._core.QpBuffers()
@@ -117,8 +119,8 @@ def test_unknown_setting_stays_in_python() -> None:
     with pytest.raises(ValueError, match="osqp has no setting 'nope'"):
         _native._core.OsqpSolver("hot", {"nope": 1.0})
     assert make_solver("qpoases", nWSR=10).native_solver() is None
-    with pytest.raises(ValueError, match="qpoases \\(native\\) takes no setting 'nWSR'"):
-        _native._core.QpOasesSolver("hot", {"CPUtime": 5.0, "nWSR": 10.0})
+    with pytest.raises(ValueError, match="qpoases \\(native\\) takes no setting 'nope'"):
+        _native._core.QpOasesSolver("hot", {"CPUtime": 5.0, "nope": 10.0})
     assert make_solver("eiquadprog", nope=1).native_solver() is None
     with pytest.raises(ValueError, match="eiquadprog has no setting 'nope' \\(only max_iter\\)"):
         _native._core.EiquadprogSolver("hot", {"nope": 1.0})
@@ -254,3 +256,134 @@ def test_eiquadprog_hot_rebuilds_when_the_finite_sides_change() -> None:
         rebuilt.append(a.rebuilt)
     assert rebuilt == [True, False, True, True]
     assert py.builds == cpp.builds == 3
+
+
+# ---- qpoases_libdwbc ---------------------------------------------------------------------------
+EPS = 2.221e-16  # qpOASES: EPS
+#: Options::setToDefault() (qpOASES 3.2), the fields setToMPC / setToReliable change
+DEFAULTS = {
+    "enableRamping": 1.0,
+    "enableFarBounds": 1.0,
+    "enableFlippingBounds": 1.0,
+    "enableRegularisation": 0.0,
+    "enableFullLITests": 0.0,
+    "enableNZCTests": 1.0,
+    "enableDriftCorrection": 1.0,
+    "enableCholeskyRefactorisation": 0.0,
+    "enableEqualities": 0.0,
+    "terminationTolerance": 5e6 * EPS,
+    "initialStatusBounds": -1.0,
+    "numRegularisationSteps": 0.0,
+    "numRefinementSteps": 1.0,
+}
+#: qpOASES' Options::setToMPC() and setToReliable(), from its documentation
+MPC = {
+    **DEFAULTS,
+    "enableRamping": 0.0,
+    "enableFlippingBounds": 0.0,
+    "enableRegularisation": 1.0,
+    "enableNZCTests": 0.0,
+    "enableDriftCorrection": 0.0,
+    "enableEqualities": 1.0,
+    "terminationTolerance": 1e9 * EPS,
+    "initialStatusBounds": 0.0,
+    "numRegularisationSteps": 1.0,
+    "numRefinementSteps": 0.0,
+}
+RELIABLE = {
+    **DEFAULTS,
+    "enableFullLITests": 1.0,
+    "enableCholeskyRefactorisation": 1.0,
+    "numRefinementSteps": 2.0,
+}
+
+needs_qpoases_libdwbc = pytest.mark.skipif(
+    "qpoases_libdwbc" not in available_solvers(), reason="qpoases_libdwbc not available"
+)
+
+
+@needs_qpoases_libdwbc
+@pytest.mark.parametrize(
+    ("kind", "expected"), [("task", MPC), ("wrench", RELIABLE)], ids=["task", "wrench"]
+)
+def test_qpoases_libdwbc_options_are_libdwbcs_per_qp_kind(
+    kind: str, expected: dict[str, float]
+) -> None:
+    """libdwbc: setToMPC() for a task QP, setToReliable() for the contact-wrench QP, printing
+    off; CasADi's usage: the defaults with equalities on."""
+    py = make_solver("qpoases_libdwbc", mode="hot")
+    py.qp_kind = kind
+    settings = py.native_solver().settings()
+    assert {k: settings[k] for k in expected} == pytest.approx(expected, rel=1e-12)
+    assert settings["printLevel"] == 0.0  # PL_NONE
+    casadi = make_solver("qpoases", mode="hot").native_solver().settings()
+    assert {k: casadi[k] for k in DEFAULTS} == pytest.approx(
+        {**DEFAULTS, "enableEqualities": 1.0}, rel=1e-12
+    )
+
+
+@needs_qpoases_libdwbc
+def test_qpoases_libdwbc_hot_starts_from_its_working_set() -> None:
+    """init once; then the vector hotstart while H and [A; C] stay the same (nWSR 0 on a repeated
+    QP), the matrix hotstart when they change; the answers meet their KKT conditions and equal
+    a fresh CasADi-usage solve's."""
+    rng = np.random.default_rng(11)
+    base = sequence(rng, 20, 2, 14, False)
+    cpp = make_solver("qpoases_libdwbc", mode="hot").native_solver()
+    buf = _native._core.QpBuffers()
+    calls = []
+    problems = [base[0], base[0], dataclasses.replace(base[0], g=base[1].g), base[2]]
+    for k, problem in enumerate(problems):
+        fill(buf, problem)
+        status, iterations, *_ = cpp.solve(buf)
+        assert status == "solved", k
+        calls.append((cpp.last_call, iterations))
+        fresh = make_solver("qpoases").solve(problem)  # CasADi's usage, a fresh object
+        assert fresh.x is not None
+        np.testing.assert_allclose(cpp.x, fresh.x, rtol=0, atol=1e-7)
+        mine = dataclasses.replace(fresh, x=np.array(cpp.x), z=np.array(cpp.z))
+        assert check_solution(problem, mine, tol=1e-7).ok
+    assert [c for c, _ in calls] == ["init", "hotstart", "hotstart", "hotstart_matrices"]
+    assert calls[1][1] == 0  # the same QP again: no working-set change
+    assert cpp.builds == 1
+
+
+@needs_qpoases_libdwbc
+def test_qpoases_libdwbc_falls_back_to_a_reliable_init() -> None:
+    """A hotstart that fails is followed, in the same call, by a fresh object initialised with
+    setToReliable (libdwbc's fallback): reported as rebuilt; an infeasible QP still fails."""
+    rng = np.random.default_rng(3)
+    seq = sequence(rng, 30, 6, 20, False)
+    cpp = make_solver("qpoases_libdwbc", mode="hot").native_solver()
+    buf = _native._core.QpBuffers()
+    for problem in seq[:15]:
+        fill(buf, problem)
+        assert cpp.solve(buf)[0] == "solved"
+    fill(buf, seq[15])  # infeasible
+    status, _, _, _, _, _, rebuilt, _ = cpp.solve(buf)
+    assert (status, rebuilt, cpp.last_call) == ("infeasible", True, "reinit")
+    fill(buf, seq[16])
+    assert cpp.solve(buf)[0] == "solved" and cpp.last_call == "init"
+
+
+@needs_qpoases_libdwbc
+def test_osf_hqp_asks_for_a_wrench_handle_for_its_final_qp() -> None:
+    """The QP kind picks libdwbc's options: osf_hqp's levels are task QPs (setToMPC), its final
+    contact-wrench QP is the wrench kind (setToReliable); an unknown kind is refused."""
+    from wbcbench.controllers.registry import make_controller
+    from wbcbench.robots.loader import load_robot
+    from wbcbench.runs import scenario_context
+    from wbcbench.scenarios.load import load_scenario
+
+    loaded = load_scenario("libdwbc_osf_cycle")
+    ctx = scenario_context(
+        loaded, load_robot(loaded.spec.robot), solver="qpoases_libdwbc", mode="hot"
+    )
+    controller: Any = make_controller("osf_hqp", ctx, {"impl": "native"})
+    assert [h.qp_kind for h in controller.solvers] == ["task", "task"]
+    assert controller.final_solver.qp_kind == "wrench"
+    assert controller.final_solver.native_solver().settings() == pytest.approx(
+        {**controller.solvers[0].native_solver().settings(), **RELIABLE}
+    )
+    with pytest.raises(ValueError, match="unknown QP kind 'nope'; valid choices: task, wrench"):
+        ctx.new_solver("nope")

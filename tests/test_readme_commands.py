@@ -59,10 +59,54 @@ def reference_copy(tmp_path: Path, name: str) -> str:
     return str(target)
 
 
+def tiny_dump(tmp_path: Path) -> Path:
+    """A results folder holding three dumped QPs of one sequence (as a sweep dumps them)."""
+    from wbcbench.qp.examples import random_qp
+
+    folder = tmp_path / "dumped"
+    target = folder / "problems" / "tocabi_stand_sway-000000000000" / "qp_wbc"
+    target.mkdir(parents=True, exist_ok=True)
+    for tick in (1, 2, 3):
+        problem = random_qp(tick, n=12, n_eq=4, n_in=6)
+        problem.name = "qp_wbc"
+        problem.meta = {
+            "scenario": "tocabi_stand_sway",
+            "controller": "qp_wbc",
+            "robot": "tocabi_like",
+            "dt": 1e-3,
+            "tick": tick,
+            "index": 0,
+        }
+        problem.save(target / f"t{tick:05d}-00.npz")
+    return folder
+
+
+def tiny_export(tmp_path: Path) -> Path:
+    from wbcbench.bench.qp_export import export_qps
+
+    out = tmp_path / "exported"
+    if not out.exists():
+        export_qps(tiny_dump(tmp_path), out, show_progress=False)
+    return out
+
+
 def short_form(argv: list[str], tmp_path: Path) -> list[str]:
     """The command's arguments, shortened and pointed at ``tmp_path``."""
     sub, rest = argv[1], argv[2:]
     out: list[str] = []
+    if sub == "export-qps":  # a results folder with dumped QPs, exported into tmp_path
+        return [sub, str(tiny_dump(tmp_path)), "--out", str(tmp_path / "exported")]
+    if sub == "solvers" and "--sequences" in rest:  # an export, solved by two backends
+        return [
+            sub,
+            "--sequences",
+            str(tiny_export(tmp_path)),
+            "--solver",
+            "daqp",
+            "--solver",
+            "quadprog",
+            "--no-progress",
+        ]
     for arg in rest:
         if "<" in arg and arg.endswith(".npz"):  # a placeholder for a dumped QP
             from wbcbench.qp.examples import random_qp

@@ -444,7 +444,10 @@ def test_papers_md_opens_with_a_verdict_for_every_claim(tmp_path: Path) -> None:
     first_section = papers[papers.index("\n## ") :]
     assert first_section.startswith("\n## What was reproduced")
     table = pd.read_csv(folder / "tables" / "verdicts.csv")
-    assert len(table) == len(CLAIMS) == 14  # the rows of DESIGN §8
+    # every claim has a row, the solver-dependent ones one per solver
+    assert len(CLAIMS) == 14
+    for claim in CLAIMS:
+        assert table["claim"].str.startswith(claim.claim).any(), claim.claim
     assert set(table["verdict"]) <= set(VERDICTS)
     assert table["reason"].notna().all()
     # a run that fell is said where its numbers are used

@@ -359,10 +359,13 @@ def _hopper_with_include(
     return path
 
 
-def test_mjcf_include_is_inlined_for_pinocchio(tmp_path: Path) -> None:
+def test_mjcf_include_is_read_by_mujoco(tmp_path: Path) -> None:
     r = load_robot(_hopper_with_include(tmp_path))
     assert r.joint_names == ("hip",) and r.pin_model.nq == 8
-    assert r.notes == ("the file has no floor: a plane at z = 0 was added",)
+    assert r.notes == (
+        "the file has no floor: a plane at z = 0 was added (contype 1, conaffinity 1, condim 3, "
+        "friction 1, not the file's geom defaults)",
+    )
 
 
 def test_mjcf_include_of_a_missing_file_names_it(tmp_path: Path) -> None:
@@ -382,17 +385,17 @@ def test_the_files_balanceinertia_is_kept(tmp_path: Path) -> None:
     assert r.mj_model.body_inertia[2] == pytest.approx([0.14 / 3] * 3)
 
 
-def test_unbalanced_inertia_is_balanced_with_a_warning(tmp_path: Path) -> None:
+def test_unbalanced_inertia_is_balanced_in_both_libraries_with_a_note(tmp_path: Path) -> None:
     path = _hopper_with_include(tmp_path, inertia="0.02 0.02 0.1")
-    with pytest.warns(UserWarning) as record:
-        r = load_robot(path)
-    assert str(record[0].message) == (
-        f"{path}: body 'leg': its inertia breaks A + B >= C, which MuJoCo cannot simulate; "
-        "MuJoCo balances it, Pinocchio keeps the file's, so the simulated and the controllers' "
-        "models differ there; fix that <inertial>, or state balanceinertia in the file's "
-        "<compiler>"
+    r = load_robot(path)
+    assert r.notes[0] == (
+        "inertias that break A + B >= C in 1 of the file's bodies (leg): MuJoCo balanced them "
+        "(the file does not set balanceinertia and MuJoCo cannot simulate them as written) and "
+        "the controllers' model uses the same balanced values; fix those <inertial>s to keep "
+        "the file's"
     )
-    assert r.pin_model.inertias[2].inertia[2, 2] == pytest.approx(0.1)
+    assert r.mj_model.body_inertia[2] == pytest.approx([0.14 / 3] * 3)
+    assert np.linalg.eigvalsh(r.pin_model.inertias[2].inertia) == pytest.approx([0.14 / 3] * 3)
 
 
 def test_urdf_package_paths(tmp_path: Path) -> None:

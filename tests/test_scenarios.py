@@ -51,8 +51,9 @@ def test_unknown_key(tmp_path: Path) -> None:
     path = variant(tmp_path, "duration: 10.0", "duration: 10.0\ndurration: 3")
     assert error_of(path) == (
         f"{path}: durration: unknown key 'durration'; valid keys: contacts, control_rate, "
-        "controllers, description, duration, environment, initial, kind, limits, metrics, name, "
-        "package_dirs, reconstruction, reproduces, robot, sim, tasks, version, walk"
+        "controllers, description, duration, environment, frames, initial, kind, limits, metrics, "
+        "name, package_dirs, perturbations, reconstruction, reproduces, robot, sim, tasks, "
+        "version, walk"
     )
 
 
@@ -256,4 +257,67 @@ def test_self_collision_exclude_list(tmp_path: Path) -> None:
     )
     assert error_of(BASE, ("sim.self_collision=3",)) == (
         f"{BASE}: sim.self_collision: expected true, false or {{exclude: [[body, body], …]}}, got 3"
+    )
+
+
+def test_a_key_given_twice_names_both_lines(tmp_path: Path) -> None:
+    path = variant(tmp_path, "duration: 10.0\n", "duration: 10.0\nduration: 3\n")
+    assert error_of(path) == (
+        f"{path}: not valid YAML at line 9, column 1: duplicate key 'duration' (first at line 8)"
+    )
+
+
+def test_a_boolean_where_a_number_is_expected(tmp_path: Path) -> None:
+    path = variant(tmp_path, "duration: 10.0", "duration: true")
+    assert error_of(path) == f"{path}: duration: expected a number, got the boolean true"
+    path = variant(tmp_path, "amplitude: [0.025, 0.0, 0.0]", "amplitude: [0.025, false, 0.0]")
+    assert error_of(path) == (
+        f"{path}: tasks[0].reference.amplitude[1]: expected a number, got the boolean false"
+    )
+
+
+def test_a_missing_file_or_a_folder_is_no_such_file(tmp_path: Path) -> None:
+    missing = tmp_path / "nope.yaml"
+    assert error_of(missing) == f"{missing}: no such file"
+    assert error_of(tmp_path) == f"{tmp_path}: no such file: a folder, not a scenario file"
+
+
+def test_a_reference_without_type_lists_the_types(tmp_path: Path) -> None:
+    path = variant(tmp_path, "type: spline_there_and_back, ", "")
+    assert error_of(path) == (
+        f"{path}: tasks[0].reference: required key 'type' is missing; valid types: constant, "
+        "sinusoid, spline_there_and_back, min_jerk, piecewise"
+    )
+
+
+def test_priorities_are_whole_numbers_up_to_a_bound() -> None:
+    assert error_of(BASE, ("tasks.0.priority=1.0e+30",)) == (
+        f"{BASE}: tasks[0].priority: Input should be a valid integer"
+    )
+    assert error_of(BASE, ("tasks.0.priority=1001",)) == (
+        f"{BASE}: tasks[0].priority: Input should be less than or equal to 1000"
+    )
+
+
+def test_a_dynamic_scenario_without_contacts() -> None:
+    assert error_of(BASE, ("contacts=[]",)) == (
+        f"{BASE}: contacts: a dynamic scenario needs at least one contact: the torque-level "
+        "controllers hold the floating base on its contacts (a robot with none, or a fixed "
+        "base, is not supported)"
+    )
+
+
+def test_joint_lists_are_not_empty_and_name_each_joint_once() -> None:
+    assert error_of(BASE, ("tasks.5.joints=[]",)) == (
+        f"{BASE}: tasks[5].joints: an empty list; name at least one joint, or leave 'joints' out"
+    )
+    twice = ("tasks.5.joints=[l_knee, r_knee, l_knee]",)
+    assert error_of(BASE, twice) == (
+        f"{BASE}: tasks[5].joints: each joint at most once; repeated: l_knee"
+    )
+
+
+def test_speed_limits_are_positive() -> None:
+    assert error_of(BASE, ("controllers.kin_hqp.speed_limits.hand=-1.0",)) == (
+        f"{BASE}: controllers.kin_hqp.speed_limits.hand: Input should be greater than 0"
     )

@@ -107,6 +107,11 @@ def plan(path: str):
             ["osqp_libdwbc does not run at tier high"],
         ),
         (
+            "version: 1\nsolver_comparison:\n  dump_solver: dapq\n",
+            "solver_comparison.dump_solver[0]",
+            ["unknown solver 'dapq'", "daqp", "or one of default, native, all"],
+        ),
+        (
             "version: 1\ntracking:\n  - scenarios: [ahn_dof_scaling]\n    check_factor: -1\n",
             "tracking[0].check_factor",
             ["greater than 0"],
@@ -350,8 +355,8 @@ def test_a_closed_loop_run_rejects_a_qp_reported_solved_that_is_not(
 
     honest = ControllerContext.new_solver
 
-    def new_solver(self):
-        handle = honest(self)
+    def new_solver(self, kind="task"):
+        handle = honest(self, kind)
         return Liar(handle) if self.solver == "daqp" else handle
 
     monkeypatch.setattr(ControllerContext, "new_solver", new_solver)
@@ -521,9 +526,12 @@ def test_a_hung_solver_comparison_does_not_hang_the_sweep(
 def test_a_timing_row_records_what_the_machine_was_doing(tmp_path: Path) -> None:
     text = TINY.format(tracking_solvers="daqp", timing_solvers="daqp")
     text = "version: 1\n" + text[text.index("timing:") :]
-    run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
+    report = run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
     row = pd.read_csv(tmp_path / "out" / "runs.csv").iloc[0]
     conditions = json.loads(row["settings"])["conditions"]
+    # the sweep's report counts the timing rows and keeps the busy ones' conditions, for one
+    # line at the end instead of one per row
+    assert report.timed == 1 and report.busy == ([conditions] if conditions["busy"] else [])
     assert {
         "load_1min",
         "load_per_core",

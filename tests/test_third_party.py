@@ -46,7 +46,9 @@ def test_third_party_robot_loads_unchanged(name: str) -> None:
     info = THIRD_PARTY[name].info
     for frame in (*info.contact_frames, *info.hand_frames, info.base_body, info.torso_body):
         assert frame is not None and robot.has_frame(frame), frame
-    assert "the file has no floor: a plane at z = 0 was added" in robot.notes
+    assert any(
+        n.startswith("the file has no floor: a plane at z = 0 was added") for n in robot.notes
+    )
 
 
 @needs("talos")
@@ -134,7 +136,8 @@ def test_rc_lqp_row_split_on_talos_is_structural() -> None:
         assert rows.lqp1["torso"].size == 0 and rows.lqp2["torso"].tolist() == [0, 1, 2]
         assert rows.lqp1["com"].tolist() == [0, 1, 2]
         assert rows.lqp1["pelvis"].tolist() == [0, 1, 2]
-        assert rows.lqp1["posture"].tolist() == list(range(12))  # the legs
+        legs = [i for i, j in enumerate(ctrl.robot.joint_names) if j.startswith("leg_")]
+        assert len(legs) == 12 and rows.lqp1["posture"].tolist() == legs
 
 
 @needs("talos")

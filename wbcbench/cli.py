@@ -9,6 +9,8 @@
     wbcbench tables RESULTS_DIR      paper tables (Markdown + CSV) in RESULTS_DIR/tables
     wbcbench plots RESULTS_DIR       figures (PNG + SVG) in RESULTS_DIR/figures
     wbcbench solvers RESULTS_DIR     the solver report RESULTS_DIR/solver_report.md
+    wbcbench solvers --sequences EXPORT_DIR [--solver NAME]... [--tier T]... [--mode M]...
+    wbcbench export-qps RESULTS_DIR --out DIR   the dumped QPs as a qpbenchmark test set
     wbcbench replay PROBLEM.npz [--solver NAME]... [--tier T] [--mode M]
 
 Errors a user can cause print one line (``error: …``) and exit with status 2; no traceback.
@@ -17,6 +19,7 @@ Errors a user can cause print one line (``error: …``) and exit with status 2; 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -83,9 +86,12 @@ def _cmd_list(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from wbcbench.robots.loader import simulation_model
+    from wbcbench.robots.parity import PARITY_TOLERANCE, model_parity
     from wbcbench.runs import Planner
     from wbcbench.scenarios.initial import initial_state, self_collisions, sole_mismatches
-    from wbcbench.scenarios.load import build_contact
+    from wbcbench.scenarios.load import build_contact, sole_boxes
+    from wbcbench.scenarios.preflight import contact_rank, floor_collisions, sole_placements
 
     planner = Planner()
     for loaded, robot in [planner.scenario(name, args.set) for name in args.scenarios]:
@@ -94,10 +100,31 @@ def _cmd_validate(args: argparse.Namespace) -> int:
             f"ok  {loaded.path}  ({spec.robot}, {len(spec.tasks)} tasks, "
             f"{len(spec.contacts)} contacts, {spec.duration:g} s, hash {loaded.hash})"
         )
+        parity = model_parity(robot, states=5)
+        print(
+            f"    model: MuJoCo and Pinocchio agree to {parity.mass:.1e} (M), "
+            f"{parity.bias:.1e} (bias forces), {parity.jacobian:.1e} (frame Jacobians), "
+            f"relative, at {parity.states} random states"
+        )
+        if parity.worst > PARITY_TOLERANCE:
+            print(
+                f"    warning: the two libraries disagree by more than {PARITY_TOLERANCE:g}: the "
+                "controllers' model is not the simulated one"
+            )
         for note in robot.notes:
             print(f"    note: {note}")
         q0 = initial_state(loaded, robot)[0]
         contacts = [(build_contact(c, robot), c.contact_geometry) for c in spec.contacts]
+        frames = [c.frame for c in spec.contacts]
+        sim = simulation_model(robot, sole_boxes(spec, robot), spec.sim.excluded_pairs)
+        for _, sentence in floor_collisions(sim, frames):
+            print(f"    warning: {sentence}")
+        geometry = [(c.frame, c.contact_geometry) for c in spec.contacts]
+        for _, sentence in sole_placements(robot, q0, geometry):
+            print(f"    warning: {sentence}")
+        rank = contact_rank(robot, q0, frames)
+        if rank:
+            print(f"    warning: {rank}")
         for _, sentence in sole_mismatches(robot, q0, contacts):
             print(f"    warning: {sentence}")
         overlaps = self_collisions(robot, q0)
@@ -214,6 +241,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0 if (table["status"] == "ok").all() else 1
 
 
+def _print_suspects(out: Path) -> None:
+    """Say which runs of ``out`` ended ok with a suspect task error (summary.md lists them)."""
+    from wbcbench.bench.results import ResultsStore
+    from wbcbench.report.summary import SUSPECT_FACTOR, suspect_lines, suspects
+
+    store = ResultsStore(out)
+    odd = suspects(store.runs(), store.metrics())
+    if len(odd):
+        print(
+            f"suspect: {len(odd)} runs ended ok with a task error over {SUSPECT_FACTOR:g}× "
+            "their scenario's usual one"
+        )
+        for line in suspect_lines(odd):
+            print(line)
+
+
 def _run_plan(plan, args: argparse.Namespace, out: Path, bench: bool = False) -> int:
     """Run a plan and print what it did; the exit status: 1 when a planned row is ``failed``
     or ``error`` (for ``bench``, only ``error``), else 0."""
@@ -235,6 +278,9 @@ def _run_plan(plan, args: argparse.Namespace, out: Path, bench: bool = False) ->
         rerun="all" if args.force else "failed" if args.retry_failed else "none",
     )
     print(f"{report.computed} rows computed, {report.resumed} already in {out} (resumed)")
+    if report.busy_line():
+        print(report.busy_line(), file=sys.stderr)
+    _print_suspects(out)
     for line in report.failed[:5]:
         print(f"  failed: {line}")
     if len(report.failed) > 5:
@@ -276,29 +322,33 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return _run_plan(plan, args, Path(args.out))
 
 
+def _files_backend() -> None:
+    """Figures are written to files: matplotlib's Agg backend, chosen here and not at the
+    report modules' import, so that a notebook importing them keeps its inline plots."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+
 def write_reports(out: Path) -> None:
-    """Summary, paper tables, solver report and figures of a results folder."""
+    """Paper tables, summary, solver report and figures of a results folder."""
+    _files_backend()
     from wbcbench.bench.results import ResultsStore
     from wbcbench.report.plots import write_plots
     from wbcbench.report.solvers import write_report
+    from wbcbench.report.summary import write_summary
     from wbcbench.report.tables import write_tables
 
     store = ResultsStore(out)
-    runs = store.runs()
-    table = summary_table(runs[runs["kind"] == "tracking"], store.metrics())
-    summary = out / "summary.md"
-    summary.write_text(
-        "# wbcbench results\n\n"
-        "Closed-loop runs: one row per scenario × controller × solver. Errors are the mean "
-        "tracking-error norms over each scenario's metric window; times are medians over the run "
-        "in microseconds (see provenance.json for the machine). Open-loop timing: "
-        "`tables/papers.md`; solvers: `solver_report.md`; figures: `figures/`.\n\n"
-        + (table.to_markdown(index=False, floatfmt=".4g") if not table.empty else "(no runs)")
-        + "\n"
-    )
     print(f"tables: {write_tables(out)}")
+    print(f"summary: {write_summary(out, store.runs(), store.metrics())}")
     print(f"solver report: {write_report(out)}")
     print(f"figures: {len(write_plots(out))} files in {out / 'figures'}")
+    from wbcbench.report.robustness import write_robustness
+
+    robustness = write_robustness(out)
+    if robustness:
+        print(f"robustness: {', '.join(str(p.relative_to(out)) for p in robustness)}")
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
@@ -333,10 +383,12 @@ def _cmd_tables(args: argparse.Namespace) -> int:
 
     path = write_tables(_results_dir(args.results))
     print(path.read_text() if args.print else f"tables in {path.parent}/")
+    print(f"recommendations: {path.parents[1] / 'recommendations.md'}")
     return 0
 
 
 def _cmd_plots(args: argparse.Namespace) -> int:
+    _files_backend()
     from wbcbench.report.plots import write_plots
 
     paths = write_plots(_results_dir(args.results))
@@ -345,9 +397,55 @@ def _cmd_plots(args: argparse.Namespace) -> int:
 
 
 def _cmd_solvers(args: argparse.Namespace) -> int:
+    if args.sequences:
+        return _solve_sequences(args)
+    if args.results is None:
+        raise WbcBenchError(
+            "wbcbench solvers: give a results folder (the solver report) or --sequences "
+            "EXPORT_DIR (an export of wbcbench export-qps)"
+        )
     from wbcbench.report.solvers import write_report
 
     print(f"solver report: {write_report(_results_dir(args.results))}")
+    return 0
+
+
+def _solve_sequences(args: argparse.Namespace) -> int:
+    from wbcbench.bench.qp_export import TEST_SET
+    from wbcbench.bench.qp_sequences import sequence_report, solve_sequences
+    from wbcbench.qp import available_backends
+    from wbcbench.qp.settings import check_mode, check_tier
+
+    export = Path(args.sequences)
+    if not (export / f"{TEST_SET}.parquet").exists():
+        raise WbcBenchError(
+            f"{export}: no {TEST_SET}.parquet; make one with wbcbench export-qps RESULTS --out "
+            f"{export}"
+        )
+    tiers, modes = args.tier or ["default"], args.mode or ["hot", "warm"]
+    for tier in tiers:
+        check_tier(tier)
+    for mode in modes:
+        check_mode(mode)
+    from wbcbench.qp import solver_class
+
+    solvers = args.solver or available_backends()
+    for s in solvers:
+        solver_class(s)  # an unknown name fails here, listing the installed ones
+    rows = solve_sequences(export, solvers, tiers, modes, show_progress=not args.no_progress)
+    rows.to_csv(export / "sequence_solves.csv", index=False)
+    text = sequence_report(rows, export)
+    (export / "sequence_report.md").write_text(text)
+    print(text)
+    print(f"rows: {export / 'sequence_solves.csv'}")
+    return 0
+
+
+def _cmd_export_qps(args: argparse.Namespace) -> int:
+    from wbcbench.bench.qp_export import export_qps
+
+    summary = export_qps(_results_dir(args.results), args.out, show_progress=not args.no_progress)
+    print("\n".join(summary.lines()))
     return 0
 
 
@@ -372,7 +470,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from wbcbench.report.compare import markdown
 
-    text = markdown(_results_dir(args.before), _results_dir(args.after))
+    ignore = [k.strip() for item in args.ignore or [] for k in item.split(",") if k.strip()]
+    text = markdown(_results_dir(args.before), _results_dir(args.after), ignore)
     print(text)
     if args.out:
         Path(args.out).write_text(text)
@@ -516,13 +615,36 @@ def build_parser() -> argparse.ArgumentParser:
     for name, func, text in (
         ("tables", _cmd_tables, "paper tables beside ours (Markdown + CSV)"),
         ("plots", _cmd_plots, "figures (PNG + SVG)"),
-        ("solvers", _cmd_solvers, "the QP solver comparison report"),
     ):
         p = sub.add_parser(name, help=text)
         p.add_argument("results", metavar="RESULTS_DIR", help="a results folder of a sweep")
         if name == "tables":
             p.add_argument("--print", action="store_true", help="print the tables")
         p.set_defaults(func=func)
+
+    p = sub.add_parser(
+        "solvers",
+        help="the QP solver comparison report of a results folder, or (--sequences) the "
+        "backends on an exported test set's sequences, solved tick after tick as a controller",
+    )
+    p.add_argument("results", metavar="RESULTS_DIR", nargs="?", help="a results folder")
+    p.add_argument(
+        "--sequences", metavar="EXPORT_DIR", help="a test set written by wbcbench export-qps"
+    )
+    p.add_argument("--solver", action="append", metavar="NAME", help="a QP backend (repeatable)")
+    p.add_argument("--tier", action="append", help="accuracy tier (repeatable; default: default)")
+    p.add_argument("--mode", action="append", help="hot, warm or cold (repeatable; hot and warm)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_solvers)
+
+    p = sub.add_parser(
+        "export-qps",
+        help="the QPs a sweep dumped, as a qpbenchmark test set (Parquet + TestSet module)",
+    )
+    p.add_argument("results", metavar="RESULTS_DIR", help="a results folder with problems/")
+    p.add_argument("--out", required=True, metavar="DIR", help="where the test set goes")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_export_qps)
 
     p = sub.add_parser(
         "compare",
@@ -532,6 +654,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("before", metavar="A", help="the results folder before the change")
     p.add_argument("after", metavar="B", help="the results folder after the change")
     p.add_argument("--out", metavar="FILE.md", help="also write the comparison to this file")
+    p.add_argument(
+        "--ignore",
+        action="append",
+        metavar="KEY",
+        help="match runs that differ only in this key (repeatable, or comma-separated): "
+        "scenario, robot, controller, controller_config, solver, tier, mode, impl, duration, "
+        "ticks, recorder, overrides, settings",
+    )
     p.set_defaults(func=_cmd_compare)
 
     p = sub.add_parser("replay", help="solve a dumped QP (.npz) again with one or more solvers")
@@ -551,13 +681,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     # 2-core machine turns microsecond operations into millisecond spikes.
     threadpool_limits(1)
     try:
-        return int(args.func(args))
+        code = int(args.func(args))
+        sys.stdout.flush()  # a closed pipe is found here, not in the interpreter's last flush
+        return code
     except WbcBenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted: finished runs are saved; rerun to resume", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of the output went away (``wbcbench validate … | head``): stop quietly,
+        # and send what Python would still flush at exit nowhere
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, what a shell reports for a command a closed pipe ended
 
 
 if __name__ == "__main__":

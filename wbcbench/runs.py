@@ -41,6 +41,7 @@ from wbcbench.errors import WbcBenchError
 from wbcbench.qp.registry import DEFAULT_SOLVER, default_solver, solver_class
 from wbcbench.qp.settings import check_mode, check_tier
 from wbcbench.robots.loader import Robot
+from wbcbench.robots.model_error import with_model_error
 from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import (
     LoadedScenario,
@@ -120,6 +121,12 @@ class Run:
         cfg = f" {s.config_json}" if s.controller_config else ""
         return f"{self.name} · {s.controller}{cfg} · {s.solver} · {s.mode}"
 
+    def controller_robot(self) -> Robot:
+        """The robot the controller is built on: the simulated one, or a copy whose Pinocchio
+        model carries the scenario's model error (``perturbations.model``)."""
+        m = self.scenario.spec.perturbations.model
+        return with_model_error(self.robot, m.mass_scale, m.inertia_scale, m.com_offset)
+
     def context(
         self, context_cls: type[ControllerContext] = ControllerContext, **options: Any
     ) -> ControllerContext:
@@ -128,7 +135,7 @@ class Run:
         s = self.settings
         return scenario_context(
             self.scenario,
-            self.robot,
+            self.controller_robot(),
             context_cls,
             solver=s.solver,
             tier=s.tier,
@@ -169,8 +176,8 @@ class WrappingContext(ControllerContext):
 
     wrap: Callable[[Any], Any] | None = None
 
-    def new_solver(self) -> Any:
-        handle = super().new_solver()
+    def new_solver(self, kind: str = "task") -> Any:
+        handle = super().new_solver(kind)
         return self.wrap(handle) if self.wrap is not None else handle
 
 

@@ -282,6 +282,50 @@ def top_mutations(raw: dict[str, Any]) -> list[tuple[str, Mutation]]:
                 setter(("sim", "max_consecutive_failures"), 0, "sim.max_consecutive_failures"),
             ),
         ]
+        p = "perturbations"
+        push = {"body": "pelvis", "start": 0.5, "duration": 0.1, "force": [100.0, 0.0, 0.0]}
+        out += [
+            ("delay_negative", setter((p, "sensing", "delay"), -1, f"{p}.sensing.delay")),
+            ("delay_fraction", setter((p, "sensing", "delay"), 1.5, f"{p}.sensing.delay")),
+            ("q_noise_nan", setter((p, "sensing", "q_noise"), NAN, f"{p}.sensing.q_noise")),
+            ("v_noise_negative", setter((p, "sensing", "v_noise"), -0.1, f"{p}.sensing.v_noise")),
+            ("mass_scale_zero", setter((p, "model", "mass_scale"), 0.0, f"{p}.model.mass_scale")),
+            (
+                "mass_scale_negative",
+                setter((p, "model", "mass_scale"), -1.1, f"{p}.model.mass_scale"),
+            ),
+            (
+                "inertia_scale_nan",
+                setter((p, "model", "inertia_scale"), NAN, f"{p}.model.inertia_scale"),
+            ),
+            ("lag_negative", setter((p, "actuation", "lag"), -0.01, f"{p}.actuation.lag")),
+            ("quantum_inf", setter((p, "actuation", "quantum"), INF, f"{p}.actuation.quantum")),
+            (
+                "push_body_unknown",
+                setter((p, "pushes"), [{**push, "body": "no_such_body"}], f"{p}.pushes[0].body"),
+            ),
+            (
+                "push_duration_zero",
+                setter((p, "pushes"), [{**push, "duration": 0.0}], f"{p}.pushes[0].duration"),
+            ),
+            (
+                "push_frame_typo",
+                setter((p, "pushes"), [{**push, "frame": "local"}], f"{p}.pushes[0].frame"),
+            ),
+            (
+                "push_force_nan",
+                setter((p, "pushes"), [{**push, "force": [NAN, 0, 0]}], f"{p}.pushes[0].force"),
+            ),
+            (
+                "payload_body_unknown",
+                setter(
+                    (p, "model", "payload"),
+                    {"body": "no_such_hand", "mass": 1.0},
+                    f"{p}.model.payload.body",
+                ),
+            ),
+            ("perturbations_unknown_key", setter((p, "noise"), 0.1, f"{p}.noise")),
+        ]
     return out
 
 

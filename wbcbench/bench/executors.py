@@ -41,10 +41,11 @@ def run_tracking(
     """
     from threadpoolctl import threadpool_limits
 
+    from wbcbench.bench.guard import report_progress
     from wbcbench.bench.runner import compute_tracking
 
     with threadpool_limits(1):
-        record = compute_tracking(run, rid, version, check_factor=check_factor)
+        record = compute_tracking(run, rid, version, report_progress, check_factor)
     record.result = None
     if record.log and log_every > 1:
         record.log = {k: v[::log_every] for k, v in record.log.items()}
@@ -73,9 +74,11 @@ def run_tracking_guarded(
     args = (run, rid, version, log_every, check_factor)
     if not can_guard():
         return run_tracking(*args)
-    seconds = wall_limit_s or tracking_deadline(run.scenario.spec.duration)
+    spec = run.scenario.spec
+    seconds = wall_limit_s or tracking_deadline(spec.duration, spec.control_rate)
     printed = printed_path(folder, rid) if folder else None
-    outcome = call_with_deadline(run_tracking, args, seconds, printed)
+    doing = f"solver {run.settings.solver}"
+    outcome = call_with_deadline(run_tracking, args, seconds, printed, doing=doing)
     if outcome.ok:
         record: RunRecord = outcome.value
         return record

@@ -18,6 +18,13 @@ costs one interpreter start per guarding process (about 2 s).
 The server is started with :mod:`subprocess`, not :mod:`multiprocessing`, so that daemonic
 processes (the workers of a dask cluster, local or remote) guard their runs too: multiprocessing
 forbids them children.
+
+Nothing outlives its caller. On Linux the server asks the kernel for SIGKILL when the thread
+that started it ends (``prctl(PR_SET_PDEATHSIG)``), and so does every child it forks, for when
+the server ends: a sweep killed by any means takes its server and its running child with it
+within milliseconds, and a resume never meets a writer of the killed sweep (see also
+:mod:`wbcbench.bench.lock`). Elsewhere the server still kills its child when the caller's end
+of its request pipe closes.
 """
 
 from __future__ import annotations
@@ -74,11 +81,14 @@ class Guarded:
         value: what the function returned (``None`` unless ``ok``).
         ok: the function returned within the deadline.
         message: why not, e.g. ``"exceeded the wall-clock guard of 600 s"``.
+        stalled: the child was stopped because one step outlasted its own deadline
+            (:func:`watch_step`); the rest of its work may go on in a new child.
     """
 
     value: Any
     ok: bool
     message: str = ""
+    stalled: bool = False
 
 
 def can_guard() -> bool:
@@ -86,12 +96,49 @@ def can_guard() -> bool:
     return hasattr(os, "fork")
 
 
+#: ``PR_SET_PDEATHSIG`` of ``<linux/prctl.h>``
+PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent: int) -> None:
+    """Have the kernel send this process SIGKILL when its parent ``parent`` ends (Linux; a no-op
+    elsewhere). Exits at once when ``parent`` has already ended (this process was re-parented
+    before the request took effect)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) != 0:
+            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
+    if os.getppid() != parent:
+        os._exit(1)
+
+
 # -- the child: one run ---------------------------------------------------------------------
 
 
+#: a watch file: ticks done and total (``qq``), then the step under way: its deadline on the
+#: system's monotonic clock, its length [s] and what it is (``dd200s``)
+_TICKS, _STEP = struct.Struct("qq"), struct.Struct("dd200s")
+WATCH_SIZE = _TICKS.size + _STEP.size
+
+
+@dataclass
+class Watched:
+    """What a guarded child last said it was doing (see :class:`ProgressFile`)."""
+
+    done: int
+    total: int
+    until: float  # the step's deadline (time.monotonic); 0: no step under way
+    limit: float  # the step's own deadline [s]
+    doing: str  # the step, e.g. "solver osqp (mid, hot) on problems/…/t00021-00.npz"
+
+
 class ProgressFile:
-    """A ``progress(done, total)`` callback that a guarded child writes to a small file, for the
-    caller to read while it waits (a callback of the caller's own does not cross processes)."""
+    """What a guarded child is doing, written to a small file for the caller to read while it
+    waits (a callback of the caller's own does not cross processes): ticks done as a
+    ``progress(done, total)`` callback, and the step under way with its own deadline
+    (:meth:`step`), past which the caller stops the child."""
 
     def __init__(self, path: str) -> None:
         self.path = path
@@ -100,20 +147,51 @@ class ProgressFile:
     def __getstate__(self) -> dict[str, Any]:
         return {"path": self.path, "_fd": None}
 
-    def __call__(self, done: int, total: int) -> None:
+    def _write(self, data: bytes, offset: int) -> None:
         if self._fd is None:
             self._fd = os.open(self.path, os.O_WRONLY)
-        os.pwrite(self._fd, struct.pack("qq", done, total), 0)
+        os.pwrite(self._fd, data, offset)
 
-    def read(self) -> tuple[int, int] | None:
+    def __call__(self, done: int, total: int) -> None:
+        self._write(_TICKS.pack(done, total), 0)
+
+    def step(self, doing: str, seconds: float) -> None:
+        """A step begins that must end within ``seconds`` (``doing``: what it is, e.g. which
+        solver); ``seconds`` 0: the step ended."""
+        until = time.monotonic() + seconds if seconds > 0 else 0.0
+        self._write(_STEP.pack(until, seconds, doing.encode()[:200]), _TICKS.size)
+
+    def read(self) -> Watched | None:
         try:
             data = Path(self.path).read_bytes()
         except OSError:
             return None
-        if len(data) != 16:
+        if len(data) != WATCH_SIZE:
             return None
-        done, total = struct.unpack("qq", data)
-        return done, total
+        done, total = _TICKS.unpack_from(data)
+        until, limit, doing = _STEP.unpack_from(data, _TICKS.size)
+        return Watched(done, total, until, limit, doing.rstrip(b"\0").decode(errors="replace"))
+
+
+#: set in the environment of a child that takes over the work of one stopped at a step's deadline
+STOPPED_ENV = "WBCBENCH_STOPPED_STEP"
+
+#: the watch of this process when it is a guarded child (None elsewhere)
+_watch: ProgressFile | None = None
+
+
+def report_progress(done: int, total: int) -> None:
+    """In a guarded child: ``done`` of ``total`` ticks (or solves) are done (a no-op
+    elsewhere)."""
+    if _watch is not None:
+        _watch(done, total)
+
+
+def watch_step(doing: str, seconds: float) -> None:
+    """In a guarded child: the step ``doing`` begins and must end within ``seconds``; 0 ends it
+    (a no-op elsewhere). The caller stops a child whose step outlasts its deadline."""
+    if _watch is not None:
+        _watch.step(doing, seconds)
 
 
 def _redirect_stdout(path: str) -> None:
@@ -129,11 +207,17 @@ def _redirect_stdout(path: str) -> None:
     os.close(fd)
 
 
-def _run_child(payload: bytes) -> None:
-    """In the forked child: unpickle the call, run it, write the pickled outcome to the result
-    file, and leave without the server's exit handlers (``os._exit``)."""
+def _run_child(payload: bytes, server: int) -> None:
+    """In the forked child of the fork server ``server``: unpickle the call, run it, write the
+    pickled outcome to the result file, and leave without the server's exit handlers
+    (``os._exit``)."""
     try:
-        stdout, result_path, path, cwd, env, saved, call = pickle.loads(payload)
+        die_with_parent(server)
+        stdout, result_path, watch, path, cwd, env, saved, call = pickle.loads(payload)
+        # the module the run's code imports (the server runs this file as __main__)
+        from wbcbench.bench import guard as imported
+
+        imported._watch = ProgressFile(watch)
         # the caller's now, not when the server started: its modules, working folder and
         # environment (a test's or a notebook's changes included)
         sys.path[:] = path
@@ -194,10 +278,11 @@ def _wait_or_kill(pid: int, requests: Connection) -> int:
             os.close(pidfd)
 
 
-def serve(request_fd: int, reply_fd: int) -> None:
+def serve(request_fd: int, reply_fd: int, caller: int) -> None:
     """The fork server's loop: import :data:`PRELOAD`, then for every request fork a child that
     runs it, reply ``("started", pid)`` and, once it ends, ``("ended", status)``. Ends when the
-    caller closes its end of the request pipe."""
+    caller (process ``caller``) closes its end of the request pipe, or ends."""
+    die_with_parent(caller)
     requests = Connection(request_fd, writable=False)
     replies = Connection(reply_fd, readable=False)
     for name in PRELOAD:
@@ -214,11 +299,12 @@ def serve(request_fd: int, reply_fd: int) -> None:
             continue
         sys.stdout.flush()
         sys.stderr.flush()
+        server = os.getpid()
         pid = os.fork()
         if pid == 0:
             requests.close()
             replies.close()
-            _run_child(payload)
+            _run_child(payload, server)
         replies.send(("started", pid))
         replies.send(("ended", _wait_or_kill(pid, requests)))
 
@@ -231,7 +317,14 @@ class ForkServer:
         reply_r, reply_w = os.pipe()
         env = {**os.environ, **SERVER_ENV}
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "wbcbench.bench.guard", str(request_r), str(reply_w)],
+            [
+                sys.executable,
+                "-m",
+                "wbcbench.bench.guard",
+                str(request_r),
+                str(reply_w),
+                str(os.getpid()),
+            ],
             pass_fds=(request_r, reply_w),
             stdin=subprocess.DEVNULL,
             env=env,
@@ -257,9 +350,10 @@ class ForkServer:
             raise RuntimeError(f"the fork server ended (exit code {code})") from None
         return kind, value
 
-    def run(self, payload: bytes, seconds: float, waiting: Callable[[], None] | None) -> int | None:
+    def run(self, payload: bytes, seconds: float, waiting: Callable[[], bool] | None) -> int | None:
         """Fork a child for ``payload``; its wait status, or None when it was killed at the
-        deadline. ``waiting`` is called about five times a second meanwhile."""
+        deadline. ``waiting`` is called about five times a second meanwhile; when it returns
+        True the child is killed at once."""
         deadline = time.monotonic() + seconds
         self.requests.send_bytes(payload)
         kind, value = self._reply(SERVER_START_S, "fork")
@@ -271,8 +365,8 @@ class ForkServer:
                 break
             if self.replies.poll(min(left, 0.2)):
                 return int(self._reply(0, "reply")[1])
-            if waiting is not None:
-                waiting()
+            if waiting is not None and waiting():
+                break
         self.requests.send_bytes(b"kill")
         self._reply(60.0, "stop its child")
         return None
@@ -340,31 +434,42 @@ def call_with_deadline(
     seconds: float,
     stdout: str | Path | None = None,
     progress: Callable[[int, int], None] | None = None,
+    doing: str = "",
 ) -> Guarded:
     """``fn(*args)`` in a child of this thread's fork server, killed after ``seconds`` of wall
-    time.
+    time, or as soon as a step it announced (:func:`watch_step`) outlasts that step's own
+    deadline.
 
     ``fn`` (a function of an importable module: not of a script's ``__main__``), ``args`` and
-    the result must pickle. Never raises for what
-    happens in the child. ``stdout``: a file that receives what the child prints to its standard
-    output (kept only when something was printed; a failed outcome's message then names it).
-    ``progress``: passed on as ``fn``'s ``progress`` keyword; the child's calls reach it
-    through :class:`ProgressFile`.
+    the result must pickle. Never raises for what happens in the child. ``stdout``: a file that
+    receives what the child prints to its standard output (kept only when something was
+    printed; a failed outcome's message then names it). ``progress``: passed on as ``fn``'s
+    ``progress`` keyword; the child's calls reach it through :class:`ProgressFile`.
+    ``doing``: what the child works with (e.g. ``"solver proxqp"``), named when it is stopped
+    and reported no step of its own.
     """
     out = str(stdout) if stdout else None
     fd, result_path = tempfile.mkstemp(prefix="wbcbench-guard-", suffix=".pickle")
     os.close(fd)
-    relay: ProgressFile | None = None
+    fd, watch_path = tempfile.mkstemp(prefix="wbcbench-watch-")
+    os.write(fd, bytes(WATCH_SIZE))
+    os.close(fd)
+    watch = ProgressFile(watch_path)
     kwargs: dict[str, Any] = {}
     if progress is not None:
-        fd, progress_path = tempfile.mkstemp(prefix="wbcbench-progress-")
-        os.close(fd)
-        relay = ProgressFile(progress_path)
-        kwargs["progress"] = relay
+        kwargs["progress"] = ProgressFile(watch_path)
+    stalled: list[Watched] = []
 
-    def waiting() -> None:
-        if relay is not None and progress is not None and (seen := relay.read()) is not None:
-            progress(*seen)
+    def waiting() -> bool:
+        seen = watch.read()
+        if seen is None:
+            return False
+        if progress is not None and seen.total:
+            progress(seen.done, seen.total)
+        if seen.until and time.monotonic() > seen.until:
+            stalled.append(seen)
+            return True
+        return False
 
     try:
         try:
@@ -372,25 +477,22 @@ def call_with_deadline(
         except Exception as exc:
             return Guarded(None, False, f"the run's arguments do not pickle: {exc}")
         caller = (sys.path, os.getcwd(), dict(os.environ))
-        payload = pickle.dumps((out, result_path, *caller, saved, call), pickle.HIGHEST_PROTOCOL)
+        payload = pickle.dumps(
+            (out, result_path, watch_path, *caller, saved, call), pickle.HIGHEST_PROTOCOL
+        )
+        started = time.monotonic()
         try:
             status = fork_server().run(payload, seconds, waiting)
         except (RuntimeError, OSError) as exc:  # the server could not start or died
             return Guarded(None, False, f"the wall-clock guard failed: {exc}")
         if status is None:
-            outcome = Guarded(
-                None,
-                False,
-                f"exceeded the wall-clock guard of {seconds:g} s (a hung solver or native "
-                "call); the run was stopped",
-            )
+            outcome = _stopped(stalled, watch.read(), seconds, time.monotonic() - started, doing)
         else:
             waiting()
             outcome = _outcome(Path(result_path).read_bytes(), status)
     finally:
         Path(result_path).unlink(missing_ok=True)
-        if relay is not None:
-            Path(relay.path).unlink(missing_ok=True)
+        Path(watch_path).unlink(missing_ok=True)
     printed = Path(out) if out else None
     if printed is not None and printed.exists():
         if printed.stat().st_size == 0:
@@ -398,6 +500,37 @@ def call_with_deadline(
         elif not outcome.ok:
             outcome.message += f" (what it printed: {printed.parent.name}/{printed.name})"
     return outcome
+
+
+def _stopped(
+    stalled: list[Watched], seen: Watched | None, seconds: float, waited: float, doing: str
+) -> Guarded:
+    """The outcome of a child stopped at a deadline: which one, and what it was doing."""
+    if stalled:
+        step = stalled[0]
+        return Guarded(
+            None,
+            False,
+            f"{step.doing} did not end within its own deadline of {step.limit:g} s; stopped "
+            f"after {waited:.1f} s",
+            stalled=True,
+        )
+    where = seen.doing if seen is not None and seen.doing else doing
+    inside = f", in {where}" if where else ""
+    if seen is None or seen.done == 0:
+        total = f" (0 of {seen.total})" if seen is not None and seen.total else ""
+        return Guarded(
+            None,
+            False,
+            f"exceeded the wall-clock guard of {seconds:g} s having made no progress{total}"
+            f"{inside}: stuck before its first tick or solve; the run was stopped",
+        )
+    return Guarded(
+        None,
+        False,
+        f"exceeded the wall-clock guard of {seconds:g} s after {seen.done} of {seen.total} "
+        f"ticks{inside}; the run was stopped",
+    )
 
 
 def _outcome(data: bytes, status: int) -> Guarded:
@@ -409,17 +542,25 @@ def _outcome(data: bytes, status: int) -> Guarded:
     return Guarded(value, True)
 
 
-def tracking_deadline(duration: float) -> float:
-    """The default guard of a closed-loop run [s]: 120 × its simulated duration, at least 300 s
-    (a 1 kHz tick may take up to 0.12 s before a run counts as hung)."""
-    return max(300.0, 120.0 * duration)
+#: what every guarded run may take beyond its ticks [s]: the child's start, loading its robot
+#: and building its controller, on a loaded machine
+START_S = 60.0
+#: what one control tick may take before a run counts as hung [s] (a tick takes 1-20 ms)
+TICK_S = 0.12
 
 
-def timing_deadline(window_end: float, ticks: int) -> float:
-    """The default guard of a timing replay [s]: its recording (simulated up to the window's
-    end) plus one second a replayed tick, at least 300 s."""
-    return max(300.0, 120.0 * window_end + float(ticks))
+def tracking_deadline(duration: float, control_rate: float = 1000.0) -> float:
+    """The default guard of a closed-loop run [s]: :data:`START_S` plus :data:`TICK_S` per
+    control tick of its simulated ``duration`` [s] (a 0.2 s run at 1 kHz: 84 s)."""
+    return START_S + TICK_S * duration * control_rate
+
+
+def timing_deadline(replayed: int, recorded: int = 0) -> float:
+    """The default guard of a timing job [s]: :data:`START_S` plus :data:`TICK_S` per tick it
+    replays and per tick it must first record in closed loop (0 once the recording is cached:
+    40 replayed ticks get 64.8 s)."""
+    return START_S + TICK_S * (replayed + recorded)
 
 
 if __name__ == "__main__":
-    serve(int(sys.argv[1]), int(sys.argv[2]))
+    serve(int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]))

@@ -13,6 +13,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from wbcbench.qp import proxsuite_build
+
 REPO = Path(__file__).resolve().parents[2]
 
 #: the tested dependency set: every distribution, direct and transitive, at an exact version
@@ -220,4 +222,6 @@ def provenance() -> dict[str, Any]:
         "python": platform.python_version(),
         "packages": package_versions(),
         "environment": lock_status(),
+        # which of proxsuite's builds ProxQP runs (wbcbench.qp.proxsuite_build)
+        "proxsuite_build": os.environ.get(proxsuite_build.ENV, "generic"),
     }

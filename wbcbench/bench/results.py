@@ -115,7 +115,7 @@ class ResultsStore:
             writer = csv.DictWriter(fh, fieldnames=columns, extrasaction="ignore")
             if new:
                 writer.writeheader()
-            writer.writerows(_one_line(row) for row in rows)
+            writer.writerows(one_line(row) for row in rows)
             fh.flush()
 
     def add_run(
@@ -219,7 +219,7 @@ class ResultsStore:
         return int(gone.sum())
 
 
-def _one_line(row: dict[str, Any]) -> dict[str, Any]:
+def one_line(row: dict[str, Any]) -> dict[str, Any]:
     """The row with line breaks in its text replaced by spaces: one row is one line of the file,
     so a write cut short by a kill is exactly a last line without its newline."""
     return {

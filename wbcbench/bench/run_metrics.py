@@ -1,7 +1,8 @@
 """Metrics of one closed-loop run, in long form: (task, metric, value, unit).
 
 * tracking: per task and error part, ``err_mean`` / ``err_max`` (``err_rot_mean`` … for the
-  orientation part of pose tasks) over the scenario's window, and ``err_final``;
+  orientation part of pose tasks) over the scenario's window, and ``err_final``; in a run
+  with perturbations, measured on the simulated robot (not the controller's noisy view of it);
 * constraints: torque-limit excess (commanded), friction / CoP / normal-force violations of the
   predicted (commanded) and simulated wrenches, each the maximum over the window (friction,
   CoP and yaw on the ticks where the contact carries load; ``unloaded_contact_ticks_*`` counts
@@ -65,9 +66,12 @@ def run_metrics(
         return rows
     t = cols["t"]
     mask = np.ones_like(t, dtype=bool) if window is None else (t >= window[0]) & (t <= window[1])
+    # a perturbed run logs each task's error on the simulated robot beside the controller's
+    # view of it (noisy, on its own model): the metrics are the robot's
+    source = "true_err" if any(k.startswith("true_err.") for k in cols) else "err"
     for task, parts in result.task_parts.items():
         for part in parts:
-            series = cols[f"err.{task}.{part}"]
+            series = cols[f"{source}.{task}.{part}"]
             unit = ERROR_UNITS[part]
             w = series[mask]
             w = w[np.isfinite(w)]  # a swing task is not evaluated while its foot stands

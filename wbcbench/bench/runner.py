@@ -23,6 +23,7 @@ from wbcbench.bench.run_metrics import run_metrics
 from wbcbench.errors import WbcBenchError
 from wbcbench.runs import Run
 from wbcbench.scenarios.load import build_contacts
+from wbcbench.scenarios.schema import PerturbationsSpec
 from wbcbench.sim.closed_loop import RunResult, run_closed_loop
 
 
@@ -45,9 +46,10 @@ def run_id(
 ) -> str:
     """The key a rerun skips by; ``extra`` holds any further setting (e.g. a timing window)."""
     settings = run.settings
+    seed = seed or run.scenario.spec.perturbations.seed
     parts: list[Any] = [
         run.scenario.name,
-        run.scenario.hash,
+        run.scenario.hash,  # covers the perturbations too
         settings.controller,
         settings.controller_config,
         settings.solver,
@@ -75,11 +77,14 @@ def base_row(
     geometry by its sole box, and when and where it ran."""
     loaded, settings = run.scenario, run.settings
     boxes = {c.frame: c.contact_geometry for c in loaded.spec.contacts}
+    pert = loaded.spec.perturbations
     info = {
         "overrides": list(loaded.overrides),
         "duration_s": loaded.spec.duration,
         # the simulated feet, when a contact replaces the model's geometry by its sole box
         **({"contact_geometry": boxes} if "box" in boxes.values() else {}),
+        # what differs from the ideal run, and the two models when they differ
+        **({"perturbations": pert.summary(), **models_of(pert)} if pert.active else {}),
         **(extra or {}),
         "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "host": platform.node(),
@@ -96,11 +101,32 @@ def base_row(
         tier=settings.tier,
         mode=settings.mode,
         impl=run.impl,
-        seed=0,
+        seed=pert.seed,
         code_version=version,
         kind=kind,
         settings=json.dumps(info, sort_keys=True),
     )
+
+
+def models_of(pert: PerturbationsSpec) -> dict[str, str]:
+    """The simulated model and the controller's, in words, when either differs from the file."""
+    m = pert.model
+    sim = "the robot's file"
+    if m.payload is not None:
+        p = m.payload
+        sim += f" + a {p.mass:g} kg payload on {p.body} at {list(p.offset)} m"
+    if pert.actuation.lag:
+        sim += f", motors with a {1e3 * pert.actuation.lag:g} ms first-order lag"
+    own = []
+    if m.mass_scale != 1:
+        own.append(f"masses x{m.mass_scale:g}")
+    inertia = m.mass_scale if m.inertia_scale is None else m.inertia_scale
+    if inertia != 1:
+        own.append(f"inertias x{inertia:g}")
+    if any(m.com_offset):
+        own.append(f"CoMs moved by {list(m.com_offset)} m")
+    controller = "the robot's file" + (f" with {', '.join(own)}" if own else "")
+    return {"simulated_model": sim, "controller_model": controller}
 
 
 @dataclass

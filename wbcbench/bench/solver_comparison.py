@@ -6,22 +6,28 @@ accuracy tier and mode:
 
 * ``cold``: a fresh handle per problem;
 * ``warm`` / ``hot``: one handle per sequence of the same QP (same controller and QP index) over
-  consecutive ticks, so the second tick on starts from the first's solution or object.
+  consecutive ticks, each tick starting from the previous one's solution or solver object. The
+  handle first solves, unrecorded, the same QP of the tick before the sequence (its *primer*,
+  ``prime-t<tick>-<k>.npz``), so that the first recorded solve starts warm or hot as the
+  controller's did; a folder dumped without primers starts its sequences cold.
 
-A named setting (``osqp_libdwbc``) runs at its own tier and mode only.
+A named setting (``osqp_libdwbc``, ``qpoases_libdwbc``) runs at its own tier and mode only.
 
-Each solve is one row of ``qp_solves.csv`` (appended as it finishes; a rerun skips the rows it
-has): the reported status, whether the solution is *valid* — checked independently of the status
-with :func:`wbcbench.qp.validated` at the tier's tolerance scaled by the data's magnitude — the
-wall, set-up and solver-internal times, iterations, primal / dual residuals, duality gap and the
-distance to a high-accuracy reference solution. :mod:`wbcbench.report.solvers` reads the table.
+Each solve is one row of ``qp_solves.csv`` (committed as it finishes, keyed; a rerun skips the
+rows it has and never writes a key twice): the reported status, whether the solution is *valid*
+— checked independently of the status with :func:`wbcbench.qp.validated` at the tier's
+tolerance scaled by the data's magnitude — the wall, set-up and solver-internal times,
+iterations, primal / dual residuals, duality gap and the distance to a high-accuracy reference
+solution. :mod:`wbcbench.report.solvers` reads the table.
 """
 
 from __future__ import annotations
 
 import csv
 import hashlib
+import io
 import json
+import os
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -30,6 +36,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from wbcbench.bench.results import one_line
 from wbcbench.qp import Problem, Solution, check_solution, make_solver, validated
 from wbcbench.qp.registry import DEFAULT_SOLVER
 from wbcbench.qp.settings import TIER_EPS
@@ -85,31 +92,76 @@ def problem_sequences(folder: str | Path) -> list[list[Path]]:
     return [sorted(paths) for _, paths in sorted(groups.items())]
 
 
+def primer_of(path: Path) -> Path | None:
+    """The QP of the tick before ``path``'s sequence, solved first to prime a warm or hot
+    handle (see :func:`wbcbench.bench.timing.dump_problems`); None when it was not dumped."""
+    index = path.stem.split("-")[-1]
+    found = sorted(path.parent.glob(f"prime-t*-{index}.npz"))
+    return found[-1] if found else None
+
+
 def file_key(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
 
 
 class SolveTable:
-    """The append-only ``qp_solves.csv`` of one results folder."""
+    """The append-only ``qp_solves.csv`` of one results folder, keyed by ``key`` (problem file ×
+    solver × tier × mode × code version).
+
+    Each row is committed alone, as one whole line in one ``write`` to the file opened for
+    appending, and only when its key is not stored yet: a kill loses at most the solve under
+    way, and leaves at most a torn last line, which the next writer cuts (:meth:`done`) and
+    readers ignore. One writer at a time (the sweep's lock, :mod:`wbcbench.bench.lock`).
+    """
 
     def __init__(self, folder: str | Path) -> None:
         self.path = Path(folder) / SOLVES_CSV
+        self._keys: set[str] | None = None
+
+    def _whole_lines(self) -> bytes:
+        data = self.path.read_bytes() if self.path.exists() else b""
+        return data[: data.rfind(b"\n") + 1]
 
     def done(self) -> set[str]:
-        if not self.path.exists():
-            return set()
-        return set(pd.read_csv(self.path, usecols=["key"])["key"])
+        """The stored keys, after cutting a torn last line (for the writer only)."""
+        if self.path.exists():
+            data = self.path.read_bytes()
+            if not data.endswith(b"\n"):
+                tmp = self.path.with_suffix(".csv.tmp")
+                tmp.write_bytes(data[: data.rfind(b"\n") + 1])
+                os.replace(tmp, self.path)
+        table = self.read()
+        self._keys = set(table["key"]) if "key" in table.columns else set()
+        return set(self._keys)
 
-    def append(self, rows: Iterable[dict[str, Any]]) -> None:
-        new = not self.path.exists()
-        with self.path.open("a", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=SOLVE_COLUMNS, extrasaction="ignore")
-            if new:
+    def add(self, row: dict[str, Any]) -> bool:
+        """Commit one row unless its key is stored; whether it was written."""
+        if self._keys is None:
+            self.done()
+        assert self._keys is not None
+        if row["key"] in self._keys:
+            return False
+        text = io.StringIO()
+        writer = csv.DictWriter(text, fieldnames=SOLVE_COLUMNS, extrasaction="ignore")
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            if os.fstat(fd).st_size == 0:
                 writer.writeheader()
-            writer.writerows(rows)
+            writer.writerow(one_line(row))
+            os.write(fd, text.getvalue().encode())
+        finally:
+            os.close(fd)
+        self._keys.add(row["key"])
+        return True
+
+    def append(self, rows: Iterable[dict[str, Any]]) -> int:
+        """:meth:`add` each row; how many were written."""
+        return sum(self.add(row) for row in rows)
 
     def read(self) -> pd.DataFrame:
-        return pd.read_csv(self.path) if self.path.exists() else pd.DataFrame()
+        """The stored rows (a torn last line, of a write under way, left out)."""
+        data = self._whole_lines()
+        return pd.read_csv(io.BytesIO(data)) if data else pd.DataFrame()
 
 
 def reference_solution(problem: Problem, solver: str) -> tuple[np.ndarray | None, bool]:
@@ -168,15 +220,26 @@ def compare_on_problems(
     skip: Iterable[Any] = (),
     version: str = "",
     show_progress: bool = True,
+    solve_limit_s: float = 10.0,
 ) -> int:
     """Solve every dumped problem with every solver × tier × mode the solver runs at (a named
-    setting runs at its own only); append rows; return count."""
+    setting runs at its own only); append rows; return count.
+
+    In a guarded child each solve has a deadline of ``solve_limit_s``: the caller stops a child
+    whose solve outlasts it and starts the comparison again, which records that solve (named
+    in ``qp_solves.pending.json`` before it began) as failed and skips the rest of its solver ×
+    tier × mode.
+    """
     from tqdm import tqdm
 
+    from wbcbench.bench.guard import report_progress, watch_step
     from wbcbench.qp import solver_class
 
     table = SolveTable(folder)
+    table.done()
+    written = _record_hung(folder, table)
     done = table.done()
+    hung = _hung_combos(table)
     sequences = problem_sequences(folder)
     loaded = {p: Problem.load(p) for seq in sequences for p in seq}
     keys = {p: file_key(p) for p in loaded}
@@ -184,12 +247,12 @@ def compare_on_problems(
     combos = [
         (s, t, m) for s in solvers for t in tiers for m in modes if solver_class(s).offers(t, m)
     ]
-    written = 0
     skip_rules = list(skip)
+    todo = len(combos) * sum(len(seq) for seq in sequences)
+    count = 0
     with tqdm(total=len(combos), desc="solver comparison", disable=not show_progress) as bar:
         for solver, tier, mode in combos:
             bar.update()
-            rows: list[dict[str, Any]] = []
             reason = next(
                 (
                     r.reason
@@ -201,10 +264,12 @@ def compare_on_problems(
                 ),
                 "",
             )
-            too_slow = ""
+            too_slow = hung.get((solver, tier, mode), "")
             for seq in sequences:
                 handle = None
                 for path in seq:
+                    count += 1
+                    report_progress(count, todo)
                     problem = loaded[path]
                     key = f"{keys[path]}:{solver}:{tier}:{mode}:{version.split('@', 1)[0]}"
                     if key in done:
@@ -212,34 +277,76 @@ def compare_on_problems(
                         continue
                     base = _base(path, problem, solver, tier, mode, key, version)
                     if reason or too_slow:
-                        rows.append(
-                            {
-                                **base,
-                                "status": "skipped",
-                                "valid": False,
-                                "message": reason or too_slow,
-                            }
-                        )
+                        row = {**base, "status": "skipped", "valid": False}
+                        written += table.add({**row, "message": reason or too_slow})
                         continue
                     if handle is None or mode == "cold":
                         handle = make_solver(solver, tier=tier, mode=mode)
+                        primer = primer_of(path) if mode != "cold" else None
+                        if primer is not None:
+                            handle.solve(Problem.load(primer))  # unrecorded: the tick before
                     if path not in refs:
+                        watch_step(f"reference {reference_solver} on {base['problem']}", 60.0)
                         refs[path] = reference_solution(problem, reference_solver)
                     ref, ref_ok = refs[path]
+                    doing = f"solver {solver} ({tier}, {mode}) on {base['problem']}"
+                    _pending(folder, base, solve_limit_s)
+                    watch_step(doing, solve_limit_s)
                     t0 = time.perf_counter()
                     sol = handle.solve(problem)
                     elapsed = time.perf_counter() - t0
-                    rows.append(
-                        {**base, **solve_row(problem, sol, tier, ref), "reference_ok": ref_ok}
-                    )
+                    watch_step("", 0.0)
+                    measured = solve_row(problem, sol, tier, ref)
+                    written += table.add({**base, **measured, "reference_ok": ref_ok})
                     if elapsed * 1e3 > max_solve_ms:
                         too_slow = (
                             f"one solve took {1e3 * elapsed:.0f} ms > max_solve_ms = "
                             f"{max_solve_ms:g} ms; the rest of this solver × tier × mode skipped"
                         )
-            table.append(rows)
-            written += len(rows)
     return written
+
+
+PENDING_JSON = "qp_solves.pending.json"
+#: the message of a solve stopped at its deadline
+HUNG = "no answer within the per-solve deadline of {limit:g} s; stopped"
+
+
+def _pending(folder: str | Path, base: dict[str, Any], limit: float) -> None:
+    """Name the solve about to begin (atomically), for a comparison that resumes after it."""
+    path = Path(folder) / PENDING_JSON
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps({"row": base, "limit": limit}, default=str))
+    os.replace(tmp, path)
+
+
+def _record_hung(folder: str | Path, table: SolveTable) -> int:
+    """A failed row for the solve named pending when the caller stopped it at its deadline
+    (after a kill of the sweep it is solved again). Returns the rows written."""
+    path = Path(folder) / PENDING_JSON
+    if not path.exists():
+        return 0
+    pending = json.loads(path.read_text())
+    path.unlink()
+    from wbcbench.bench.guard import STOPPED_ENV
+
+    if not os.environ.get(STOPPED_ENV):
+        return 0
+    row = {**pending["row"], "status": "failed", "valid": False}
+    return int(table.add({**row, "message": HUNG.format(limit=pending["limit"])}))
+
+
+def _hung_combos(table: SolveTable) -> dict[tuple[str, str, str], str]:
+    """Solver × tier × mode with a solve stopped at its deadline: why the rest is skipped."""
+    rows = table.read()
+    if rows.empty:
+        return {}
+    prefix = HUNG.split("{", 1)[0]
+    stopped = rows[rows["message"].astype(str).str.startswith(prefix)]
+    return {
+        (str(r.solver), str(r.tier), str(r.mode)): f"an earlier solve of this solver × tier × "
+        f"mode: {r.message}"
+        for r in stopped.itertuples()
+    }
 
 
 def _match(value: str, pattern: str) -> bool:
@@ -292,6 +399,7 @@ def run_solver_comparison(plan: Any, folder: str | Path, show_progress: bool = T
         spec.skip,
         version,
         show_progress,
+        spec.solve_limit_s,
     )
 
 

@@ -3,7 +3,9 @@
 A sweep file (YAML, ``version: 1``) holds lists of *matrices*. Each ``tracking`` matrix expands
 into closed-loop runs, each ``timing`` matrix into open-loop replay timing runs on recorded states;
 ``solver_comparison`` compares every QP backend on the dumped QPs of replayed steps and
-``hls_scaling`` times the hierarchical least-squares algorithms against the problem size::
+``hls_scaling`` times the hierarchical least-squares algorithms against the problem size, and
+``push_recovery`` bisects the largest push each controller × solver survives
+(:mod:`wbcbench.bench.push_recovery`)::
 
     version: 1
     tracking:
@@ -31,16 +33,21 @@ jobs; :func:`run_sweep` runs them. Every error names the sweep file and the key 
 
 from __future__ import annotations
 
+import dataclasses
 import fnmatch
+import json
+import os
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from wbcbench.bench.checks import CHECK_FACTOR
+from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE
 from wbcbench.errors import ScenarioError, UnknownNameError, WbcBenchError
 from wbcbench.qp.registry import default_solver
 from wbcbench.runs import Planner, Run, RunSettings, solver_runs
@@ -174,15 +181,27 @@ class SolverComparisonSpec(Strict):
     dump_ticks: int = Field(4, ge=1, description="consecutive ticks dumped per pair")
     dump_after: int = Field(20, ge=0, description="replayed ticks before the first dump")
     reference_solver: str = "clarabel"
+    dump_solver: str = Field(
+        "default",
+        description="the backend the controllers replay with while their QPs are dumped (a "
+        "hierarchy's lower levels depend on the solutions of the higher ones)",
+    )
     max_solve_ms: float = Field(
         250.0, gt=0, description="a solver × tier × mode slower than this once is skipped"
     )
     skip: list[SkipRule] = Field(default_factory=list)
+    solve_limit_s: float = Field(
+        10.0,
+        gt=0,
+        description="deadline of each solve [s]: a solve still going then (a hung solver) is "
+        "stopped and recorded as failed, the rest of its solver × tier × mode skipped, and the "
+        "comparison goes on",
+    )
     wall_limit_s: float = Field(
         3600.0,
         gt=0,
-        description="wall-clock guard of the whole comparison [s]: a solve that hangs stops it "
-        "there (the rows written so far stay) and the sweep goes on",
+        description="wall-clock guard of the whole comparison [s] (the rows written so far "
+        "stay) and the sweep goes on",
     )
 
 
@@ -198,6 +217,43 @@ class HlsScalingSpec(Strict):
     )
 
 
+class PushRecoverySpec(Strict):
+    """The push-recovery study (:mod:`wbcbench.bench.push_recovery`): per scenario ×
+    controller × solver and direction, the largest survived impulse, bracketed."""
+
+    scenarios: list[str] = ["tocabi_stand_sway"]
+    controllers: list[str] = ["*"]
+    solvers: list[str] = ["daqp"]
+    directions: list[Literal["+x", "-x", "+y", "-y"]] = Field(
+        ["+x", "-x", "+y", "-y"], min_length=1, description="world axes"
+    )
+    body: str | dict[str, str] = Field(
+        "pelvis", description="the pushed body, or scenario name → body (robots name it apart)"
+    )
+    start: float = Field(0.5, ge=0, le=60, description="when the push starts [s]")
+    duration: float = Field(0.1, gt=0, le=5, description="how long it lasts [s]")
+    recover_time: float = Field(
+        1.0, gt=0, le=60, description="after the push, when the CoM is judged [s]"
+    )
+    recover_distance: float = Field(
+        0.02, gt=0, le=1, description="how close to its reference the CoM must be then [m]"
+    )
+    max_impulse: float = Field(80.0, gt=0, le=1e4, description="the search's upper end [N·s]")
+    resolution: float = Field(5.0, gt=0, description="the widest reported bracket [N·s]")
+    wall_limit_s: float = Field(
+        14_400.0, gt=0, description="wall-clock guard of the whole study [s]"
+    )
+
+    @model_validator(mode="after")
+    def _resolution(self) -> PushRecoverySpec:
+        if not self.resolution < self.max_impulse:
+            raise ValueError(
+                f"resolution ({self.resolution:g} N·s) must be below max_impulse "
+                f"({self.max_impulse:g} N·s)"
+            )
+        return self
+
+
 class SweepSpec(Strict):
     """A sweep file."""
 
@@ -207,6 +263,7 @@ class SweepSpec(Strict):
     timing: list[TimingSpec] = Field(default_factory=list)
     solver_comparison: SolverComparisonSpec | None = None
     hls_scaling: HlsScalingSpec | None = None
+    push_recovery: PushRecoverySpec | None = None
 
 
 # -- the expanded plan
@@ -246,6 +303,8 @@ class SweepPlan:
     comparison_targets: list[tuple[Run, dict[str, Any]]]
     comparison_solvers: list[str]
     timing_by_scenario: dict[str, dict[str, Any]]  # scenario key → recording options
+    #: (scenario, controller, solver, pushed body) of the push-recovery study
+    push_targets: list[tuple[str, str, str, str]] = field(default_factory=list)
 
 
 def load_sweep_file(path: str | Path) -> tuple[str, SweepSpec]:
@@ -257,8 +316,10 @@ def load_sweep_file(path: str | Path) -> tuple[str, SweepSpec]:
     if not p.exists():
         valid = sorted(x.stem for x in SWEEP_DIR.glob("*.yaml"))
         raise UnknownNameError("sweep file", file, valid, hint="or give a path to a YAML file")
+    from wbcbench.scenarios.load import UniqueKeyLoader
+
     try:
-        raw = yaml.safe_load(p.read_text())
+        raw = yaml.load(p.read_text(), Loader=UniqueKeyLoader)
     except yaml.YAMLError as exc:
         raise ScenarioError(file, "", f"not valid YAML: {exc}") from None
     if not isinstance(raw, dict):
@@ -307,7 +368,7 @@ def resolve_scenarios(patterns: Sequence[str], file: str, key: str) -> list[str]
             continue
         try:
             path = resolve_scenario_path(pattern)
-        except UnknownNameError as exc:
+        except (UnknownNameError, ScenarioError) as exc:  # not a scenario, or no such file
             raise ScenarioError(file, f"{key}[{i}]", str(exc)) from None
         name = pattern if pattern in available_scenarios() else str(path)
         if name not in out:
@@ -660,6 +721,7 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
         check_solver_choices(comparison.solvers, comparison.tiers, comparison.modes, file, key)
         not_applicable += offered_choices(comp_solvers, comparison.tiers, comparison.modes, key)[1]
         resolve_solvers([comparison.reference_solver], file, f"{key}.reference_solver")
+        dump_solver = resolve_solvers([comparison.dump_solver], file, f"{key}.dump_solver")[0]
         if not solver_class(comparison.reference_solver).offers("high", "cold"):
             raise ScenarioError(
                 file,
@@ -676,10 +738,74 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
             )
             for controller, _ in controllers:
                 if not controller_class(controller).applies_to(loaded.spec):
-                    run = planner.run(loaded, controller, mode="hot", timing=True)
+                    run = planner.run(loaded, controller, dump_solver, mode="hot", timing=True)
                     targets.append((run, options))
+    pushes = _push_targets(planner, spec.push_recovery, file, not_applicable)
     return SweepPlan(
-        file, spec, jobs, not_applicable, comparison, targets, comp_solvers, timing_opts
+        file, spec, jobs, not_applicable, comparison, targets, comp_solvers, timing_opts, pushes
+    )
+
+
+def _push_targets(
+    planner: Planner, study: PushRecoverySpec | None, file: str, notes: list[str]
+) -> list[tuple[str, str, str, str]]:
+    """The study's scenario × controller × solver with the body each scenario's robot is pushed
+    on, each trial's scenario checked once (the pushed body, the controller's settings) before
+    any simulation step."""
+    from wbcbench.bench.push_recovery import DIRECTIONS, push_overrides
+    from wbcbench.controllers.registry import controller_class
+
+    if study is None:
+        return []
+    key = "push_recovery"
+    names = resolve_scenarios(study.scenarios, file, f"{key}.scenarios")
+    controllers = resolve_controllers(study.controllers, file, f"{key}.controllers")
+    solvers = resolve_solvers(study.solvers, file, f"{key}.solvers")
+    out: list[tuple[str, str, str, str]] = []
+    bodies = study.body if isinstance(study.body, dict) else {}
+    for name in bodies:
+        if name not in names:
+            raise ScenarioError(
+                file, f"{key}.body.{name}", f"not one of the study's scenarios: {', '.join(names)}"
+            )
+    for name in names:
+        body = bodies.get(name, "pelvis") if bodies else str(study.body)
+        settings = dataclasses.replace(push_study(study), body=body)
+        overrides = tuple(push_overrides(settings, next(iter(DIRECTIONS)), study.max_impulse))
+        where = f"{key}.body.{name}" if bodies else f"{key}.body"
+        loaded = _scenario(planner, name, overrides, file, where)
+        if not any(t.type == "com" for t in loaded.spec.tasks):
+            raise ScenarioError(
+                file, f"{key}.scenarios", f"scenario {name!r} has no com task to judge by"
+            )
+        for controller, explicit in controllers:
+            cls = controller_class(controller)
+            reason = cls.applies_to(loaded.spec) or (
+                "velocity-level: no physics to push" if cls.kind == "velocity" else ""
+            )
+            if reason:
+                if explicit:
+                    notes.append(f"{key} · {loaded.name} · {controller}: {reason}")
+                continue
+            for solver in [cls.own_solver] if cls.own_solver else solvers:
+                planner.run(loaded, controller, solver)
+                if (name, controller, solver, body) not in out:
+                    out.append((name, controller, solver, body))
+    return out
+
+
+def push_study(spec: PushRecoverySpec) -> Any:
+    """The study's settings (:class:`wbcbench.bench.push_recovery.PushStudy`)."""
+    from wbcbench.bench.push_recovery import PushStudy
+
+    return PushStudy(
+        body=spec.body if isinstance(spec.body, str) else "pelvis",
+        start=spec.start,
+        duration=spec.duration,
+        recover_time=spec.recover_time,
+        recover_distance=spec.recover_distance,
+        max_impulse=spec.max_impulse,
+        resolution=spec.resolution,
     )
 
 
@@ -736,6 +862,22 @@ class SweepReport:
     resumed: int = 0
     failed: list[str] = field(default_factory=list)
     not_ok: dict[str, int] = field(default_factory=dict)
+    #: timing rows computed now: how many, and the machine conditions of those timed busy
+    timed: int = 0
+    busy: list[dict[str, Any]] = field(default_factory=list)
+
+    def busy_line(self) -> str:
+        """One line for every timing row timed on a busy machine, with the worst load (or "")."""
+        if not self.busy:
+            return ""
+        worst = max(self.busy, key=lambda c: float(c.get("load_1min", 0.0)))
+        return (
+            f"warning: {len(self.busy)} of {self.timed} timing rows were timed on a busy machine "
+            f"(worst: load {worst.get('load_1min', float('nan')):g}, other work "
+            f"{worst.get('other_load_per_core', float('nan')):g} per core, above "
+            f"{BUSY_LOAD_PER_CORE:g}): compare their times only within this run; the paper "
+            "verdicts resting on them say inconclusive"
+        )
 
 
 def run_sweep(
@@ -756,7 +898,26 @@ def run_sweep(
     ``failed`` recomputes the planned rows stored as ``failed`` or ``error``, ``all`` every
     planned row (their old rows, metrics and logs are removed first). ``max_jobs`` stops
     after that many computed rows (to test interruption).
+
+    The sweep holds ``out`` for its whole run (:class:`~wbcbench.bench.lock.SweepLock`): it
+    starts only once no earlier sweep on the folder, nor any process one started, is alive.
     """
+    from wbcbench.bench.lock import SweepLock
+
+    with SweepLock(out):
+        return _run_sweep(plan, out, executor, scheduler, show_progress, max_jobs, on_row, rerun)
+
+
+def _run_sweep(
+    plan: SweepPlan,
+    out: str | Path,
+    executor: str,
+    scheduler: str | None,
+    show_progress: bool,
+    max_jobs: int | None,
+    on_row: Callable[[Job, dict[str, Any]], None] | None,
+    rerun: Literal["none", "failed", "all"],
+) -> SweepReport:
     from threadpoolctl import threadpool_limits
     from tqdm import tqdm
 
@@ -802,6 +963,11 @@ def run_sweep(
         report.computed += 1
         budget[0] -= 1
         row = record.row
+        if row.get("kind") == "timing" and row["status"] != "skipped":
+            report.timed += 1
+            conditions = _conditions(row)
+            if conditions.get("busy"):
+                report.busy.append(conditions)
         if row["status"] in NOT_OK:
             report.failed.append(f"{job.label}: {row['status']}: {row.get('message', '')}")
         if on_row is not None:
@@ -849,7 +1015,29 @@ def run_sweep(
         scaling = (plan.spec.hls_scaling, store, version)
         _guarded("hls scaling", run_hls_scaling, scaling, HLS_WALL_LIMIT_S, store.folder)
         store.refresh_mirror()  # (its rows were appended by the child)
+    if plan.spec.push_recovery is not None and plan.push_targets:
+        from wbcbench.bench.push_recovery import run_push_study
+
+        study = plan.spec.push_recovery
+        args = (
+            plan.push_targets,
+            list(study.directions),
+            push_study(study),
+            store.folder,
+            version,
+            show_progress,
+        )
+        _guarded("push recovery", run_push_study, args, study.wall_limit_s, store.folder)
     return report
+
+
+def _conditions(row: dict[str, Any]) -> dict[str, Any]:
+    """The machine conditions a timing row recorded (``settings.conditions``), or {}."""
+    try:
+        conditions = json.loads(str(row.get("settings") or "{}")).get("conditions")
+    except (ValueError, AttributeError):
+        return {}
+    return conditions if isinstance(conditions, dict) else {}
 
 
 #: wall-clock guard of the hierarchy scaling study [s] (dense linear algebra only: minutes)
@@ -865,7 +1053,7 @@ def _guarded(
     stays; what it printed goes to ``folder``'s logs)."""
     from threadpoolctl import threadpool_limits
 
-    from wbcbench.bench.guard import call_with_deadline, can_guard
+    from wbcbench.bench.guard import STOPPED_ENV, call_with_deadline, can_guard
     from wbcbench.bench.results import printed_path
 
     if not can_guard():
@@ -873,6 +1061,29 @@ def _guarded(
             fn(*args)
         return
     printed = printed_path(folder, what.replace(" ", "_"))
-    outcome = call_with_deadline(fn, args, seconds, printed)
-    if not outcome.ok:
-        print(f"{what}: {outcome.message}")
+    writer = (str(folder), os.getpid(), fn, args)
+    end, left = time.monotonic() + seconds, seconds
+    try:
+        while True:
+            outcome = call_with_deadline(as_writer, writer, left, printed)
+            if outcome.ok:
+                return
+            print(f"{what}: {outcome.message}")
+            left = end - time.monotonic()
+            if not outcome.stalled or left <= 0:
+                return
+            # one step outlasted its own deadline: the work resumes in a new child, which
+            # records that step as failed and goes on with the rest
+            os.environ[STOPPED_ENV] = "1"
+    finally:
+        os.environ.pop(STOPPED_ENV, None)
+
+
+def as_writer(folder: str, sweep_pid: int, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
+    """``fn(*args)`` in a guarded child that writes to ``folder`` for the sweep ``sweep_pid``,
+    holding the folder's writers' lock (:func:`~wbcbench.bench.lock.hold_as_writer`) until the
+    child ends."""
+    from wbcbench.bench.lock import hold_as_writer
+
+    hold_as_writer(folder, sweep_pid)
+    return fn(*args)

@@ -1,6 +1,6 @@
 """Timing runs: every controller × solver replays exactly the same recorded states.
 
-Protocol (DESIGN §7): the states of one closed-loop run per scenario are recorded once and cached
+Protocol (docs/timing.md): states of one closed-loop run per scenario are recorded once and cached
 next to the results (``recordings/<scenario>-<hash>-<recorder>-<end>.npz``; when the planned
 recorder falls or fails inside the window, the next of the matrix's ``record_with`` that applies
 records it, and the rows name the recorder they replayed); each controller ×
@@ -19,7 +19,7 @@ solved but …``.
 from __future__ import annotations
 
 import json
-import sys
+import os
 import time
 import traceback
 from pathlib import Path
@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 
 from wbcbench.bench.checks import SolverCapture, check_reported
-from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE, machine_conditions
+from wbcbench.bench.guard import report_progress
+from wbcbench.bench.provenance import machine_conditions
 from wbcbench.bench.runner import RunRecord, base_row, ended_record
 from wbcbench.bench.sweep import HlsScalingSpec, Job
 from wbcbench.errors import WbcBenchError
@@ -124,13 +125,16 @@ def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> 
 
     if not can_guard():
         return run_timing_job(job, rid, version, folder)
-    spec = job.run.scenario.spec
-    window = spec.metrics.window
-    seconds = job.options.get("wall_limit_s") or timing_deadline(
-        window[1] if window is not None else spec.duration, int(job.options["ticks"])
-    )
+    loaded, opts = job.run.scenario, job.options
+    ticks, start = int(opts["ticks"]), float(opts["start"])
+    end = min(loaded.spec.duration, start + ticks * loaded.spec.dt)
+    cached = recording_path(Path(folder), loaded, opts["recorder"], end).exists()
+    recorded = 0 if cached else round(end / loaded.spec.dt)
+    seconds = opts.get("wall_limit_s") or timing_deadline(ticks, recorded)
     args = (job, rid, version, str(folder))
-    outcome = call_with_deadline(run_timing_job, args, seconds, printed_path(folder, rid))
+    doing = f"solver {job.run.settings.solver}"
+    printed = printed_path(folder, rid)
+    outcome = call_with_deadline(run_timing_job, args, seconds, printed, doing=doing)
     if outcome.ok:
         record: RunRecord = outcome.value
         return record
@@ -152,6 +156,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
     check_factor = opts.get("check_factor")
 
     def after_step(i: int, out: Any) -> str:
+        report_progress(i + 1, int(opts["ticks"]))
         totals.append(out.timings.get("total", np.nan))
         if i + 1 == probe and float(np.nanmedian(totals)) > limit:
             raise TooSlow(
@@ -187,13 +192,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
         row["settings"] = json.dumps(
             {**json.loads(row["settings"]), "conditions": conditions}, sort_keys=True
         )
-        if before["busy"]:
-            print(
-                f"warning: {job.label}: timed at load {before['load_1min']:g}, other work "
-                f"{before['other_load_per_core']:g} per core (above {BUSY_LOAD_PER_CORE:g}): the "
-                "machine was busy; compare its times only within this run",
-                file=sys.stderr,
-            )
+        # a busy machine is said once per sweep (SweepReport.busy_line), not per row
         warmup = min(int(opts["warmup"]), max(0, len(rec) - 1))
         for m in timing_metrics(timings.stages, warmup):
             metrics.append(dict(run_id=rid, **base, **m))
@@ -239,8 +238,11 @@ def dump_problems(
     """Save the QPs of ``ticks`` consecutive replayed steps of ``run`` (after ``after`` ticks)
     as .npz.
 
-    Files go to ``problems/<scenario>-<hash>/<controller>/t<tick>-<k>.npz``; an existing folder
-    is reused as is. Returns the files in tick order.
+    Files go to ``problems/<scenario>-<hash>/<controller>/t<tick>-<k>.npz``, and the QPs of the
+    tick before the first as ``prime-t<tick>-<k>.npz``: the solver comparison solves those first,
+    unrecorded, so that a warm or hot sequence starts from the previous tick's solution or
+    solver object as the controller's handle did, not cold. An existing folder is reused as is.
+    Returns the recorded files (not the primers) in tick order.
     """
     loaded, controller = run.scenario, run.controller
     target = Path(folder) / "problems" / f"{loaded.name}-{loaded.hash}" / controller
@@ -257,20 +259,27 @@ def dump_problems(
     def keep(i: int, out: Any) -> str:
         captured = [problem for problem, _ in pairs]
         pairs.clear()
-        if i < after:
+        if i < after - 1:
             return ""
+        primer = i == after - 1
         for k, problem in enumerate(captured):
             problem.meta = {
                 **problem.meta,
                 "scenario": loaded.name,
                 "scenario_hash": loaded.hash,
                 "controller": controller,
+                "robot": loaded.spec.robot,
+                "dt": loaded.spec.dt,
                 "tick": i,
                 "index": k,
+                **({"primer": True} if primer else {}),
             }
-            path = target / f"t{i:05d}-{k:02d}.npz"
-            problem.save(path)
-            saved.append(path)
+            path = target / f"{'prime-' if primer else ''}t{i:05d}-{k:02d}.npz"
+            part = path.with_name(f".{path.name}")  # atomic: a kill leaves no half file
+            problem.save(part)
+            os.replace(part, path)
+            if not primer:
+                saved.append(path)
         return ""
 
     replay(run, rec, on_step=keep, wrap_solver=lambda handle: SolverCapture(handle, pairs))

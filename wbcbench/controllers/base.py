@@ -22,6 +22,7 @@ from wbcbench import _native
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.qp import Problem, make_solver
+from wbcbench.qp.base import QP_KINDS
 from wbcbench.qp.registry import DEFAULT_SOLVER
 from wbcbench.qp.solution import SolveTimes
 from wbcbench.robots.loader import Robot
@@ -133,9 +134,14 @@ class ControllerContext:
     def contact_frames(self) -> list[str]:
         return [c.frame for c in self.contacts]
 
-    def new_solver(self) -> Any:
-        """A fresh solver handle for one QP of the controller (one per hierarchy level)."""
-        return make_solver(self.solver, tier=self.tier, mode=self.mode)
+    def new_solver(self, kind: str = "task") -> Any:
+        """A fresh solver handle for one QP of the controller (one per hierarchy level);
+        ``kind`` is what the QP is (:data:`wbcbench.qp.base.QP_KINDS`)."""
+        if kind not in QP_KINDS:
+            raise ValueError(f"unknown QP kind {kind!r}; valid choices: {', '.join(QP_KINDS)}")
+        handle = make_solver(self.solver, tier=self.tier, mode=self.mode)
+        handle.qp_kind = kind
+        return handle
 
 
 @dataclass

@@ -48,7 +48,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, model_validator
 from scipy.spatial import ConvexHull
 
 from wbcbench import _native
@@ -221,8 +221,8 @@ class KinHqpConfig(NativeImplConfig):
     obstacle_bodies: list[str] | None = Field(
         None, description="bodies checked against every obstacle; default: arms below the elbow"
     )
-    speed_limits: dict[str, float] = Field(
-        default_factory=dict, description="task name → cap on ‖ẋ_d + λ e‖ [m/s or rad/s]"
+    speed_limits: dict[str, PositiveFloat] = Field(
+        default_factory=dict, description="task name → cap on ‖ẋ_d + λ e‖ [m/s or rad/s], > 0"
     )
     damping: float = Field(1e-3, ge=0, description="Tikhonov factor of the task levels")
     gaze: GazeSpec | None = None

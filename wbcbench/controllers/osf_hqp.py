@@ -64,7 +64,7 @@ class OsfHqp(OsfControllerBase):
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
         self.solvers = [ctx.new_solver() for _ in self.levels]
-        self.final_solver = ctx.new_solver()
+        self.final_solver = ctx.new_solver("wrench")
         self.wrench_weighting()
         #: how many of the native tick's QPs the last tick reached
         self.reached = 0

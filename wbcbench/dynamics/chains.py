@@ -135,11 +135,16 @@ def split_chains(model: pin.Model, contact_frames: Sequence[str]) -> ChainSplit:
     names = [f.name for f in model.frames]
     contact_joints: set[int] = set()
     for frame in contact_frames:
-        if not model.existFrame(frame):
+        # a site (OP_FRAME) of that name, else a body, as Robot.frame_id
+        kind = next(
+            (t for t in (pin.FrameType.OP_FRAME, pin.FrameType.BODY) if model.existFrame(frame, t)),
+            None,
+        )
+        if kind is None:
             raise ModelError(
                 f"chain split: no frame {frame!r}; valid frames: {', '.join(sorted(set(names)))}"
             )
-        parent = model.frames[model.getFrameId(frame)].parentJoint
+        parent = model.frames[model.getFrameId(frame, kind)].parentJoint
         contact_joints.update(j for j in model.supports[parent] if j >= 2)
 
     constraint = sorted(contact_joints)

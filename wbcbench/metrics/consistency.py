@@ -1,4 +1,4 @@
-"""Hierarchy and dynamic-consistency metrics of one control tick, from the oracle (DESIGN §4, §7).
+"""Hierarchy and dynamic-consistency metrics of one control tick, from the oracle.
 
 A hierarchical controller's torque is a sum of per-level contributions. Applying the cumulative
 torque of the levels down to l, and then the whole torque, in the rigid-contact forward-dynamics

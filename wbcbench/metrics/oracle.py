@@ -1,4 +1,4 @@
-"""The independent rigid-contact forward-dynamics oracle (DESIGN §4).
+"""The independent rigid-contact forward-dynamics oracle.
 
 Given a torque, what does the robot really do when its contacts are rigid? Solve
 

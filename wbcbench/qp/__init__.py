@@ -11,6 +11,8 @@ fields and sign conventions; :func:`check_solution` verifies one independently.
 
 from __future__ import annotations
 
+# first: chooses proxsuite's build before any backend imports proxsuite
+from wbcbench.qp import proxsuite_build  # noqa: F401
 from wbcbench.qp.base import QPSolver
 from wbcbench.qp.problem import Problem
 from wbcbench.qp.registry import (

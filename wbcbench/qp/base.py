@@ -30,6 +30,11 @@ from wbcbench.qp.solution import Solution, SolutionStatus
 
 Array = NDArray[np.float64]
 
+#: What a QP is to its controller (:attr:`QPSolver.qp_kind`): a task QP (a hierarchy level, a
+#: whole-body QP) or OSF-HQP's contact-wrench distribution QP. Only a named setting that
+#: follows a paper's code per kind of QP (``qpoases_libdwbc``) tells them apart.
+QP_KINDS: tuple[str, ...] = ("task", "wrench")
+
 #: Fields of a :class:`Problem` an in-place update may change.
 DATA_FIELDS: tuple[str, ...] = ("H", "g", "A", "b", "C", "l", "u", "lb", "ub")
 
@@ -107,6 +112,8 @@ class QPSolver(ABC):
             **self.tier_settings(tier),
             **options,
         }
+        #: what the QP is to its controller (:data:`QP_KINDS`); set by the controller
+        self.qp_kind = "task"
         self.previous: Solution | None = None
         self.builds = 0  # native objects built by _solve_fresh with keep=True
         self._native: Any = None

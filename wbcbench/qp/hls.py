@@ -1,7 +1,7 @@
 """Hierarchical least squares with regularised QR in reduced coordinates.
 
-The method of the RQR-HQP paper (regularised QR for prioritised kinematic control, DESIGN.md
-§4 item 7): a stack of levels is solved one after the other, each level in the
+The method of the RQR-HQP paper (regularised QR for prioritised kinematic control): a stack
+of levels is solved one after the other, each level in the
 null-space basis ``Z`` of everything the levels above it fixed (§II-B),
 
     x = x_prev + Z y,    Z = null([A_1; C_sat,1; ...; A_{i-1}; C_sat,i-1]),

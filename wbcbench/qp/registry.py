@@ -59,6 +59,9 @@ BACKENDS: dict[str, BackendEntry] = {
 #: ``native`` (which means "every library once").
 NAMED_SETTINGS: dict[str, BackendEntry] = {
     "osqp_libdwbc": BackendEntry("wbcbench.qp.backends.osqp_libdwbc", "OSQPLibdwbcSolver", "osqp"),
+    "qpoases_libdwbc": BackendEntry(
+        "wbcbench.qp.backends.qpoases_libdwbc", "QpOASESLibdwbcSolver", "cmeel-qpoases"
+    ),
 }
 
 QPSOLVERS_PREFIX = "qpsolvers:"

@@ -156,9 +156,11 @@ RC_LQP_DOF = {
     45: {"proposed": 1319, "conventional": 4081},
 }
 RC_LQP_DOF_SOURCE = "RC-LQP §5.3 / Fig. 5"
-# The authors' C++ (libdwbc) on this project's 2-core machine, static state, warm OSQP:
-# reduced / conventional step time per DoF (30 DoF measured where our family has 29)
+# The authors' C++ (libdwbc), static state, warm OSQP: reduced / conventional step time per DoF
+# (30 DoF measured where our family has 29). Constants: measured once, not by `make bench`.
 RC_LQP_DOF_LIBDWBC = {20: 0.95, 25: 0.65, 30: 0.50, 33: 0.445, 39: 0.37, 45: 0.34}
+#: where and when :data:`RC_LQP_DOF_LIBDWBC` was measured (a label for figures and tables)
+RC_LQP_DOF_LIBDWBC_MEASURED = "2-core Intel Xeon VM, Nov. 2026"
 
 # RQR-HQP Fig. 1: reduced QR vs full-size QR vs SVD against the problem size N (curves only)
 RQR_FIG1_NOTE = (

@@ -1,14 +1,21 @@
-"""Figures a reader of the papers expects, from a results folder (PNG and SVG, Agg backend).
+"""Figures a reader of the papers expects, from a results folder (PNG and SVG).
+
+Importing this module chooses no matplotlib backend, so a notebook keeps its inline plots; the
+command line (``wbcbench plots``) writes the files with the Agg backend. Every timing figure
+names its solver, leaves failed runs out of its axis scaling (and marks them), and is in µs.
 
 * ``tracking_<scenario>``: tracking-error norms over time per task, one line per controller;
 * ``amendments_<scenario>``: TO-OSF amendment norms ``‖ẍ_opt − ẍ*‖`` per task;
 * ``time_vs_size``: median step time against the number of tasks, contacts and DoF;
-* ``levels``: mean QP time per hierarchy level and controller;
-* ``timing_solvers``: median step time per controller and solver;
-* ``solvers_success`` / ``solvers_time``: the solver comparison;
+* ``levels``: mean QP time per hierarchy level and controller, with its solver;
+* ``timing_solvers``: median step time per controller and solver, over the scenarios every
+  solver of a row ran (the count in each cell);
+* ``solvers_success`` / ``solvers_time``: the solver comparison, heatmaps of solver × setting;
 * ``rqr_fig1``: hierarchy time against the problem size N;
 * ``peers_kinematic``: kin_hqp beside pink and mink: the top level's error and residual while a
   lower level conflicts (rqr_gaze), the collision distance on rqr_stress, and time per tick;
+* ``degradation``: tracking error against mass error, sensing noise and delay
+  (:mod:`wbcbench.report.robustness`);
 * ``paper_*``: each paper's key comparison beside the paper's numbers
   (:mod:`wbcbench.report.paper_figures`).
 """
@@ -18,12 +25,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.colors import LogNorm, Normalize
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 from wbcbench.report.load import Results, load_results
@@ -43,7 +48,9 @@ MAX_POINTS = 800  # per line: keeps the SVG files small
 
 
 def _save(fig: Any, out: Path, name: str) -> list[Path]:
-    fig.tight_layout()
+    # leave the suptitle its own band (tight_layout alone lets the top axes' labels reach it)
+    top = 1.0 - 0.32 / fig.get_figheight() if getattr(fig, "_suptitle", None) else 1.0
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, top))
     paths = [out / f"{name}.png", out / f"{name}.svg"]
     for p in paths:
         fig.savefig(p, dpi=110)
@@ -89,6 +96,29 @@ def _shade(ax: Any, window: tuple[float, float] | None) -> None:
         ax.axvspan(*window, color="#f2e6b3", alpha=0.5, lw=0, zorder=0)
 
 
+def _window_in_data(
+    window: tuple[float, float] | None, logs: list[pd.DataFrame]
+) -> tuple[tuple[float, float] | None, str]:
+    """The metrics window cut to the time the logs cover, and the words for the title.
+
+    A shortened run (a health check) may end before the scenario's window starts: then nothing
+    is shaded and the title says where the window lies."""
+    if window is None:
+        return None, ""
+    times = [lg["t"] for lg in logs if "t" in lg.columns and not lg.empty]
+    if not times:
+        return None, ""
+    lo, hi = (
+        max(window[0], min(float(t.min()) for t in times)),
+        min(window[1], max(float(t.max()) for t in times)),
+    )
+    if lo >= hi:
+        return None, f"metrics window {window[0]:g}–{window[1]:g} s: beyond these runs"
+    if (lo, hi) != tuple(window):
+        return (lo, hi), f"shaded: the metrics window {window[0]:g}–{window[1]:g} s where logged"
+    return (lo, hi), "shaded: metrics window"
+
+
 def _thin(df: pd.DataFrame) -> pd.DataFrame:
     step = max(1, len(df) // MAX_POINTS)
     return df.iloc[::step]
@@ -99,14 +129,21 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
     runs = res.of_kind("tracking")
     if runs.empty:
         return paths
+    # perturbed runs have their own figure (wbcbench.report.robustness)
+    if "settings" in runs:
+        runs = runs[~runs["settings"].fillna("").astype(str).str.contains('"perturbations"')]
     for scenario, group in runs.groupby("scenario"):
         logs = [(row, res.log(row["run_id"])) for _, row in group.iterrows()]
         logs = [(r, lg) for r, lg in logs if not lg.empty]
         if not logs:
             continue
-        labels = _labels([row for row, _ in logs])
+        # a run that fell or failed says so in its label
+        labels = [
+            label if row["status"] == "ok" else f"{label} — {row['status']}"
+            for label, (row, _) in zip(_labels([row for row, _ in logs]), logs, strict=True)
+        ]
         err_cols = sorted({c for _, lg in logs for c in lg.columns if c.startswith("err.")})
-        window = _window(res, str(scenario))
+        window, window_note = _window_in_data(_window(res, str(scenario)), [lg for _, lg in logs])
         if err_cols:
             fig, axes = plt.subplots(
                 len(err_cols), 1, figsize=(8, 1.7 * len(err_cols) + 0.8), sharex=True, squeeze=False
@@ -125,7 +162,8 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
                 _shade(ax, window)
             axes[-1, 0].set_xlabel("time [s]")
             axes[0, 0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-            fig.suptitle(f"Tracking-error norms — {scenario} (shaded: metrics window)", fontsize=10)
+            note = f" ({window_note})" if window_note else ""
+            fig.suptitle(f"Tracking-error norms — {scenario}{note}", fontsize=10)
             paths += _save(fig, out, f"tracking_{scenario}")
         amend = sorted({c for _, lg in logs for c in lg.columns if c.startswith("diag.amend.")})
         if amend:
@@ -146,7 +184,8 @@ def tracking_figures(res: Results, out: Path) -> list[Path]:
             ax.set_xlabel("time [s]")
             ax.set_ylabel("‖ẍ_opt − ẍ*‖ [m/s² or rad/s²] (log)")
             ax.set_yscale("log")  # a fall's spike does not flatten the rest
-            ax.set_title(f"Task-acceleration amendments — {scenario}", fontsize=10)
+            note = f" ({window_note})" if window_note else ""
+            ax.set_title(f"Task-acceleration amendments — {scenario}{note}", fontsize=9)
             ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
             ax.grid(alpha=0.3, which="both")
             _shade(ax, window)
@@ -190,11 +229,14 @@ def size_figures(res: Results, out: Path) -> list[Path]:
         return []
     from wbcbench.qp.registry import default_solver
 
+    t = t[~_failed(t)]  # a failed run's times are no timing of the controller
     t = (
         t[(t["solver"] == default_solver()) & (t["mode"] == "hot")]
         if (t["mode"] == "hot").any()
         else t
     )
+    if t.empty:
+        return []
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.4), sharey=True)
     for ax, (col, label) in zip(
         axes,
@@ -204,19 +246,67 @@ def size_figures(res: Results, out: Path) -> list[Path]:
         for name, g in t.groupby("series"):
             series = g.groupby(col)["median_us"].median().sort_index()
             # markers only: points of different scenarios differ in more than this size
-            ax.plot(series.index, series.to_numpy() / 1e3, "o", label=name, alpha=0.8)
+            ax.plot(series.index, series.to_numpy(), "o", label=name, alpha=0.8)
         ax.set_xlabel(label)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("median step time [ms] (log)")
+    axes[0].set_ylabel("median step time [µs] (log)")
     axes[0].set_yscale("log")
     axes[0].yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     axes[0].yaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     axes[-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.suptitle(
-        f"Compute time vs problem size ({default_solver()}, open-loop replay)", fontsize=10
+        f"Compute time vs problem size ({default_solver()}, hot, open-loop replay; "
+        "runs that failed left out)",
+        fontsize=10,
     )
     return _save(fig, out, "time_vs_size")
+
+
+def _heatmap(
+    ax: Any,
+    values: pd.DataFrame,
+    text: pd.DataFrame,
+    norm: Any,
+    cmap: str,
+    colorbar_label: str,
+) -> None:
+    """``values`` as coloured cells (rows × columns) with ``text`` written in each; a missing
+    value is a grey cell with its text (e.g. ``failed``) or a dash."""
+    data = np.ma.masked_invalid(values.to_numpy(dtype=float))
+    colours = plt.get_cmap(cmap).with_extremes(bad="#e0e0e0")
+    image = ax.imshow(data, cmap=colours, norm=norm, aspect="auto")
+    for i in range(values.shape[0]):
+        for j in range(values.shape[1]):
+            cell = data[i, j]
+            dark = not np.ma.is_masked(cell) and norm(float(cell)) < 0.35
+            ax.text(
+                j,
+                i,
+                text.iat[i, j] or "–",
+                ha="center",
+                va="center",
+                fontsize=7,
+                color="white" if dark else "black",
+            )
+    ax.set_xticks(range(values.shape[1]), [str(c) for c in values.columns], rotation=35, ha="right")
+    ax.set_yticks(range(values.shape[0]), [str(r) for r in values.index])
+    ax.tick_params(labelsize=8)
+    ax.figure.colorbar(image, ax=ax, label=colorbar_label, fraction=0.04, pad=0.02)
+
+
+def _log_norm(values: pd.DataFrame) -> Any:
+    """A logarithmic colour scale over the finite positive values (any scale when none)."""
+    v = values.to_numpy(dtype=float)
+    v = v[np.isfinite(v) & (v > 0)]
+    if v.size == 0:
+        return LogNorm(vmin=1.0, vmax=10.0)
+    return LogNorm(vmin=float(v.min()), vmax=max(float(v.max()), float(v.min()) * 1.01))
+
+
+def _failed(runs: pd.DataFrame) -> pd.Series:
+    """Whether each run failed (its numbers are not a timing of a working controller)."""
+    return runs["status"].astype(str) != "ok"
 
 
 def level_figure(res: Results, out: Path) -> list[Path]:
@@ -244,24 +334,45 @@ def level_figure(res: Results, out: Path) -> list[Path]:
         # one bar per scenario (a scenario's variants and robots: its first)
         runs_c = picked[picked["controller"] == controller].drop_duplicates("scenario")
         scenarios = [str(s) for s in runs_c["scenario"]]
+        failed = _failed(runs_c).to_numpy()
         levels = sorted(m[m["run_id"].isin(runs_c["run_id"])]["task"].astype(str).unique())
         bottom = np.zeros(len(runs_c))
         for k, level in enumerate(levels):
             vals = np.array(
                 [
-                    float(m[(m["run_id"] == rid) & (m["task"] == level)]["value"].sum()) / 1e3
+                    float(m[(m["run_id"] == rid) & (m["task"] == level)]["value"].sum())
                     for rid in runs_c["run_id"]
                 ]
             )
+            vals[failed] = 0.0  # a failed run's times are not drawn, nor scale the axis
             ax.bar(range(len(vals)), vals, bottom=bottom, label=level, color=_level_color(k))
             bottom += vals
+        for x, (_, run) in enumerate(runs_c.iterrows()):
+            if failed[x]:
+                ax.annotate(
+                    f"✗ {run['status']}\n{int(run['failures'])}/{int(run['ticks'])} ticks",
+                    (x, 0),
+                    xytext=(0, 4),
+                    textcoords="offset points",
+                    ha="center",
+                    va="bottom",
+                    fontsize=6,
+                    color="#b00020",
+                    rotation=90,
+                )
         ax.set_xticks(range(len(scenarios)), scenarios, rotation=35, ha="right", fontsize=7)
-        ax.set_title(controller, fontsize=9)
-        ax.set_ylabel("mean QP time per level [ms]", fontsize=8)
+        setting = runs_c.iloc[0]
+        ax.set_title(
+            f"{controller} — {setting['solver']} ({setting['tier']}, {setting['mode']})",
+            fontsize=9,
+        )
+        ax.set_ylabel("mean QP time per level [µs]", fontsize=8)
         ax.grid(axis="y", alpha=0.3)
         ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.0, 1.0), title="level")
     impl = ", ".join(sorted(set(_impl_of(picked))))
-    fig.suptitle(f"Per-level QP solve time, stacked (impl: {impl})", fontsize=10)
+    fig.suptitle(
+        f"Per-level QP solve time, stacked (impl: {impl}; ✗: a failed run, not drawn)", fontsize=10
+    )
     return _save(fig, out, "levels")
 
 
@@ -270,52 +381,100 @@ def _level_color(k: int) -> Any:
 
 
 def timing_solver_figure(res: Results, out: Path) -> list[Path]:
+    """Median step time per controller (impl) · mode and solver, as a heatmap.
+
+    Each row's cells are medians over the same scenarios: those every solver of the row timed
+    without failing (the count in each cell), so a solver timed on one easy scenario is never set
+    beside one timed on fourteen. A combination whose every run failed reads ``failed``."""
     t = _timing_table(res)
     if t.empty:
         return []
-    t = t.assign(label=t["series"] + " · " + t["mode"])
-    pivot = (
-        t.pivot_table(index="label", columns="solver", values="median_us", aggfunc="median") / 1e3
-    )
-    fig, ax = plt.subplots(figsize=(max(6, 0.9 * len(pivot) + 3), 3.6))
-    pivot.plot.bar(ax=ax, logy=True)
-    ax.set_ylabel("median step time [ms] (log)")
-    ax.set_xlabel("controller (impl) · mode")
-    ax.axhline(1.0, color="k", lw=0.8, ls="--", label="1 kHz budget")
+    t = t.assign(label=t["series"] + " · " + t["mode"], failed=_failed(t))
+    rows, solvers = sorted(t["label"].unique()), sorted(t["solver"].unique())
+    values = pd.DataFrame(np.nan, index=rows, columns=solvers)
+    text = pd.DataFrame("", index=rows, columns=solvers)
+    used: set[str] = set()
+    for label, g in t.groupby("label"):
+        ok = g[~g["failed"]]
+        scenario_sets = [set(s["scenario"]) for _, s in ok.groupby("solver")]
+        common = set.intersection(*scenario_sets) if scenario_sets else set()
+        used |= common
+        for solver, s in g.groupby("solver"):
+            good = s[~s["failed"] & s["scenario"].isin(common)]
+            if good.empty:
+                text.loc[label, solver] = "failed" if s["failed"].all() else ""
+                continue
+            value = float(good.groupby("scenario")["median_us"].median().median())
+            values.loc[label, solver] = value
+            text.loc[label, solver] = f"{value:.0f}\nn={good['scenario'].nunique()}"
+    fig, ax = plt.subplots(figsize=(1.0 * len(solvers) + 4.5, 0.42 * len(rows) + 1.8))
+    norm = _log_norm(values)
+    _heatmap(ax, values, text, norm, "viridis", "median step time [µs] (log)")
+    ax.set_xlabel("solver")
+    ax.set_ylabel("controller (impl) · mode")
     ax.set_title(
-        "Open-loop replay: median step time per solver (median over scenarios)", fontsize=10
+        "Open-loop replay: median step time [µs] per solver; n = the scenarios of the median,\n"
+        "the same for every solver of a row (those each timed without a failure)"
+        + (f":\n{', '.join(sorted(used))}" if 0 < len(used) <= 4 else ""),
+        fontsize=9,
     )
-    ax.legend(fontsize=6, ncol=3)
     return _save(fig, out, "timing_solvers")
 
 
+def _setting_order(labels: list[str]) -> list[str]:
+    from wbcbench.report.tables.common import MODE_ORDER, TIER_ORDER
+
+    def key(label: str) -> tuple[int, int, str]:
+        tier, _, mode = label.partition(" · ")
+        return (
+            TIER_ORDER.index(tier) if tier in TIER_ORDER else len(TIER_ORDER),
+            MODE_ORDER.index(mode) if mode in MODE_ORDER else len(MODE_ORDER),
+            label,
+        )
+
+    return sorted(labels, key=key)
+
+
 def solver_figures(res: Results, out: Path) -> list[Path]:
-    """The solver comparison's success rate and shifted geometric mean solve time per solver,
-    tier and mode (``solvers_success``, ``solvers_time``) into ``out``; none without solves."""
+    """The solver comparison's valid-solution rate and shifted geometric mean solve time as
+    heatmaps of solver × tier · mode (``solvers_success``, ``solvers_time``) into ``out``; none
+    without solves. The time of a setting with no valid solution is left grey."""
     from wbcbench.report.solvers import summarize
 
     s = summarize(res.qp_solves)
     if s.empty:
         return []
     paths = []
-    s = s.assign(label=s["tier"] + " · " + s["mode"])
-    for value, name, ylabel, logy in (
-        ("success [%]", "solvers_success", "valid solutions [%]", False),
-        ("wall sgm [µs]", "solvers_time", "solve time, shifted\ngeometric mean [µs] (log)", True),
+    s = s.assign(label=s["tier"].astype(str) + " · " + s["mode"].astype(str))
+    columns = _setting_order(list(s["label"].unique()))
+    problems = int(s["problems"].max())
+    for value, name, bar, title in (
+        (
+            "success [%]",
+            "solvers_success",
+            "valid solutions [%]",
+            f"Valid solutions [%] of {problems} whole-body-control QPs (the independent check)",
+        ),
+        (
+            "wall sgm [µs]",
+            "solvers_time",
+            "shifted geometric mean [µs] (log)",
+            "Solve time [µs], shifted geometric mean over the same QPs",
+        ),
     ):
         pivot = s.pivot_table(index="solver", columns="label", values=value, aggfunc="first")
-        fig, ax = plt.subplots(figsize=(max(7, 0.6 * len(pivot) + 4), 3.8))
-        pivot.plot.bar(ax=ax, logy=logy)
-        ax.set_ylabel(ylabel)
-        ax.set_xlabel("solver")
-        ax.set_title("QP solvers on whole-body-control problems", fontsize=10)
-        ax.legend(
-            fontsize=7,
-            title="tier · mode",
-            title_fontsize=7,
-            loc="upper left",
-            bbox_to_anchor=(1.01, 1.0),
-        )
+        pivot = pivot.reindex(columns=columns)
+        if value == "success [%]":
+            norm: Any = Normalize(vmin=0.0, vmax=100.0)
+            cmap, text = "RdYlGn", pivot.map(lambda v: "" if pd.isna(v) else f"{v:.0f}")
+        else:
+            norm = _log_norm(pivot)
+            cmap, text = "viridis", pivot.map(lambda v: "" if pd.isna(v) else f"{v:.3g}")
+        fig, ax = plt.subplots(figsize=(0.75 * len(columns) + 4.0, 0.38 * len(pivot) + 2.0))
+        _heatmap(ax, pivot, text, norm, cmap, bar)
+        ax.set_xlabel("accuracy tier · mode")
+        ax.set_ylabel("solver")
+        ax.set_title(title, fontsize=9)
         paths += _save(fig, out, name)
     return paths
 
@@ -479,5 +638,7 @@ def write_plots(folder: str | Path) -> list[Path]:
     ):
         paths += fn(res, out)
     from wbcbench.report.paper_figures import write_paper_figures
+    from wbcbench.report.robustness import degradation_figure, degradation_table
 
+    paths += degradation_figure(degradation_table(res), out)
     return paths + write_paper_figures(folder, res)

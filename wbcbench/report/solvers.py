@@ -162,8 +162,8 @@ def write_report(folder: str | Path) -> Path | None:
         "primal / dual / gap). Modes: `cold` (fresh solver per problem), `warm` (previous "
         "solution as guess), `hot` (persistent solver updated in place). Success = a valid "
         "solution, checked independently of the reported status. A named setting (e.g. "
-        "`osqp_libdwbc`, OSQP as the RC-LQP paper's library runs it) runs at its own tier and "
-        "mode only.",
+        "`osqp_libdwbc`, OSQP as the RC-LQP paper's library runs it; `qpoases_libdwbc`, "
+        "qpOASES as the OSF papers' library runs it) runs at its own tier and mode only.",
         "",
     ]
     skipped = solves[solves["status"] == "skipped"].drop_duplicates(["solver", "tier", "mode"])

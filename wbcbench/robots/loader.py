@@ -2,17 +2,16 @@
 
 ``load_robot("tocabi_like")`` loads a generated model; ``load_robot("path/to/robot.xml")`` or
 ``.urdf`` loads any humanoid with a free-floating base. Joints, frames and actuators are matched
-by NAME between the two libraries, never by position: URDF loaders order joints differently.
-Package paths, includes and mimic joints are resolved first (:mod:`wbcbench.robots.sources`); a
-model without a floor plane gets one.
+by NAME between the two libraries, never by position. Package paths and mimic joints are
+resolved first (:mod:`wbcbench.robots.sources`); MuJoCo compiles the file, and the Pinocchio
+model is built from that compiled model (:mod:`wbcbench.robots.pinocchio_model`), so the
+simulated robot and the controllers' are one. A model without a floor plane gets one.
 """
 
 from __future__ import annotations
 
 import copy
 import os
-import tempfile
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,12 +25,12 @@ from wbcbench import plugins
 from wbcbench.errors import ModelError, UnknownNameError
 from wbcbench.robots.generator import MODELS_DIR
 from wbcbench.robots.library import SPECS
+from wbcbench.robots.pinocchio_model import build_pinocchio_model
 from wbcbench.robots.sources import (
     ModelSource,
     default_package_dirs,
     read_source,
     resolve_package_path,
-    write_for_pinocchio,
 )
 from wbcbench.robots.spec import RobotFile, RobotInfo
 from wbcbench.robots.third_party import THIRD_PARTY
@@ -224,12 +223,27 @@ class Robot:
 # Loading
 
 
+@dataclass(frozen=True)
+class ExtraFrame:
+    """A frame a scenario adds to the robot: a site of ``body`` at ``pos`` [m], turned by
+    ``rpy`` [rad] (R = Rz(yaw) Ry(pitch) Rx(roll)) in that body's frame. It is a site of the
+    simulated model and an operational frame of the controllers' (a site has no mass)."""
+
+    name: str
+    body: str
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
 def load_robot(
     name_or_path: str | os.PathLike[str],
     base_dir: Path | None = None,
     package_dirs: Sequence[str | os.PathLike[str]] = (),
+    frames: Sequence[ExtraFrame] = (),
 ) -> Robot:
     """Load a generated robot by name, or any free-floating humanoid MJCF / URDF by path.
+
+    ``frames`` are added to the model as sites (a scenario's ``frames:``).
 
     A relative path is resolved against ``base_dir`` (a scenario file's folder) when given, and
     so are the ``package_dirs`` that ``package://`` mesh paths are looked up in (before the
@@ -246,7 +260,7 @@ def load_robot(
         path = MODELS_DIR / f"{text}.xml"
         if not path.is_file():
             raise ModelError(f"{path}: generated model missing; run `make models`")
-        return _cached_load(path, text, SPECS[text]().info, ())
+        return _cached_load(path, text, SPECS[text]().info, (), frames)
     if text in THIRD_PARTY:
         entry = THIRD_PARTY[text]
         shares = tuple(default_package_dirs())
@@ -257,13 +271,13 @@ def load_robot(
                 f"robot {text!r} is a model of {entry.distribution}, which is not installed: "
                 f"pip install '{entry.distribution}' (or 'wbcbench[robots]')"
             ) from None
-        return _cached_load(path, text, entry.info, shares)
+        return _cached_load(path, text, entry.info, shares, frames)
     found = plugins.find(GROUP, text, _check)
     if found is not None:
         robot: RobotFile = found[0]
         if not Path(robot.path).is_file():
             raise ModelError(f"robot {text!r} ({found[1]}): {robot.path}: no such model file")
-        return _cached_load(Path(robot.path), text, robot.info, tuple(robot.package_dirs))
+        return _cached_load(Path(robot.path), text, robot.info, tuple(robot.package_dirs), frames)
     looks_like_path = (
         isinstance(name_or_path, os.PathLike)
         or text.lower().endswith(_MODEL_SUFFIXES)
@@ -286,71 +300,52 @@ def load_robot(
         Path(d).expanduser() if base_dir is None else Path(base_dir) / Path(d).expanduser()
         for d in package_dirs
     )
-    return _cached_load(path, path.stem, None, dirs)
+    return _cached_load(path, path.stem, None, dirs, frames)
 
 
-_CACHE: dict[tuple[str, float, str, tuple[Path, ...]], Robot] = {}
+_CACHE: dict[tuple[str, float, str, tuple[Path, ...], tuple[ExtraFrame, ...]], Robot] = {}
 
 
 def _cached_load(
-    path: Path, name: str, info: RobotInfo | None, package_dirs: tuple[Path, ...]
+    path: Path,
+    name: str,
+    info: RobotInfo | None,
+    package_dirs: tuple[Path, ...],
+    frames: Sequence[ExtraFrame] = (),
 ) -> Robot:
-    key = (str(path.resolve()), path.stat().st_mtime, name, package_dirs)
+    key = (str(path.resolve()), path.stat().st_mtime, name, package_dirs, tuple(frames))
     robot = _CACHE.get(key)
     if robot is None:
         source = read_source(path, package_dirs)
-        robot = _load(source, name, info if info is not None else RobotInfo())
+        robot = _load(source, name, info if info is not None else RobotInfo(), tuple(frames))
         _CACHE[key] = robot
     return robot
 
 
-def _load(source: ModelSource, name: str, info: RobotInfo) -> Robot:
+def _load(
+    source: ModelSource, name: str, info: RobotInfo, frames: tuple[ExtraFrame, ...] = ()
+) -> Robot:
     path = source.path
-    pin_model = _pinocchio_model(source)
-    _check_pinocchio(path, pin_model)
-    joint_names = tuple(pin_model.names[i] for i in range(2, pin_model.njoints))
     notes: list[str] = []
-    mj_model, spec = _mujoco_model(source, pin_model, joint_names, notes)
-    robot = _assemble(path, name, info, mj_model, pin_model, joint_names)
+    mj_model, spec = _mujoco_model(source, notes, frames)
+    pin_model = build_pinocchio_model(mj_model, path)
+    robot = _assemble(path, name, info, mj_model, pin_model, source.urdf_limits)
     object.__setattr__(robot, "mj_spec", spec)
+    for shared in sorted(set(robot.joint_names) & set(robot.frame_names)):
+        kind = (
+            "site" if mujoco.mj_name2id(mj_model, mujoco.mjtObj.mjOBJ_SITE, shared) >= 0 else "body"
+        )
+        notes.append(
+            f"{shared!r} names both a joint and a {kind}: as a frame (tasks[].frame, "
+            f"contacts[].frame) it means the {kind}, as a joint (joint_posture, initial.joints) "
+            "the joint"
+        )
     if source.mimic_joints:
         pairs = ", ".join(f"{j} (mimics {m})" for j, m in source.mimic_joints.items())
         notes.insert(0, f"mimic joints held fixed at their offset: {pairs}")
         object.__setattr__(robot, "mimic_joints", dict(source.mimic_joints))
     object.__setattr__(robot, "notes", tuple(notes))
     return robot
-
-
-def _pinocchio_model(source: ModelSource) -> pin.Model:
-    path = source.path
-    try:
-        if source.is_urdf:
-            return pin.buildModelFromXML(source.text, pin.JointModelFreeFlyer())
-        if "<include" not in path.read_text(encoding="utf-8", errors="replace"):
-            return pin.buildModelFromMJCF(str(path))
-        with tempfile.TemporaryDirectory(prefix="wbcbench-mjcf-") as folder:
-            return pin.buildModelFromMJCF(str(write_for_pinocchio(source, folder)))
-    except (RuntimeError, ValueError, IndexError, KeyError) as exc:
-        raise ModelError(
-            f"{path}: Pinocchio cannot read it: {type(exc).__name__}: {exc} (Pinocchio reads "
-            "bodies, joints and inertials; an element it does not know is the usual cause)"
-        ) from exc
-
-
-def _check_pinocchio(path: Path, model: pin.Model) -> None:
-    if model.njoints < 2 or model.joints[1].shortname() != "JointModelFreeFlyer":
-        raise ModelError(
-            f"{path}: the root body needs a free joint (a free-floating humanoid base)"
-        )
-    for i in range(2, model.njoints):
-        joint = model.joints[i]
-        if joint.nq != 1 or joint.nv != 1:
-            raise ModelError(
-                f"{path}: joint {model.names[i]!r} is a {joint.shortname()}; only 1-DoF "
-                "bounded revolute or prismatic joints are supported (no continuous/ball joints)"
-            )
-    # MuJoCo ignores the free body's file pose (it is only qpos0); Pinocchio must too.
-    model.jointPlacements[1] = pin.SE3.Identity()
 
 
 def _mujoco_spec(source: ModelSource) -> mujoco.MjSpec:
@@ -362,69 +357,166 @@ def _mujoco_spec(source: ModelSource) -> mujoco.MjSpec:
         raise ModelError(f"{source.path}: MuJoCo cannot read it: {exc}") from exc
 
 
+def _robot_joints(path: Path, spec: mujoco.MjSpec) -> tuple[str, ...]:
+    """The names of the spec's hinge and slide joints (the actuated ones), in file order.
+
+    Raises:
+        ModelError: no free joint on a body of the world, or an unnamed joint.
+    """
+    free = [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]
+    if len(free) != 1 or free[0].parent.parent.name != spec.worldbody.name:
+        raise ModelError(
+            f"{path}: the root body needs a free joint (a free-floating humanoid base)"
+            + (f"; the file has {len(free)}" if len(free) > 1 else "")
+        )
+    names = []
+    for joint in spec.joints:
+        if joint.type == mujoco.mjtJoint.mjJNT_FREE:
+            continue
+        if not joint.name:
+            raise ModelError(
+                f"{path}: a <joint> of body {joint.parent.name!r} has no name; name it (joints "
+                "are matched by name between the simulation, the controllers and the scenario)"
+            )
+        names.append(joint.name)
+    return tuple(names)
+
+
+def _drop_unrepresentable(path: Path, spec: mujoco.MjSpec, notes: list[str]) -> None:
+    """Delete what Pinocchio's model cannot hold, so that the simulation does not hold it either:
+    equality constraints and tendons (and the sensors that read a tendon), with a note each."""
+    for kind, items in (("<equality>", spec.equalities), ("<tendon>", spec.tendons)):
+        listed = [e.name or f"#{i}" for i, e in enumerate(items)]
+        if not listed:
+            continue
+        if kind == "<tendon>":
+            for sensor in list(spec.sensors):
+                if sensor.objtype == mujoco.mjtObj.mjOBJ_TENDON:
+                    spec.delete(sensor)
+        for item in list(items):
+            spec.delete(item)
+        notes.append(
+            f"{kind} elements ({', '.join(listed)}) removed: the controllers' multibody model "
+            "holds no constraint between joints and no tendon, so neither is simulated"
+        )
+
+
+def _inertia_breaks_triangle(body: mujoco.MjsBody) -> bool:
+    """Whether a body's stated inertia breaks A + B ≥ C (the file's values, before MuJoCo)."""
+    if body.mass <= 0:
+        return False
+    if not np.isnan(body.fullinertia[0]):
+        full = body.fullinertia  # ixx iyy izz ixy ixz iyz
+        matrix = np.array(
+            [[full[0], full[3], full[4]], [full[3], full[1], full[5]], [full[4], full[5], full[2]]]
+        )
+        principal = np.linalg.eigvalsh(matrix)
+    else:
+        principal = np.asarray(body.inertia, dtype=float)
+    if not principal.any():
+        return False
+    a, b, c = np.sort(principal)
+    return bool(a + b < c)
+
+
+def _add_frames(path: Path, spec: mujoco.MjSpec, frames: tuple[ExtraFrame, ...]) -> None:
+    taken = {e.name for e in (*spec.bodies, *spec.sites) if e.name}
+    for frame in frames:
+        body = spec.body(frame.body)
+        if body is None:
+            bodies = sorted(b.name for b in spec.bodies if b.name and b.name != "world")
+            raise UnknownNameError(f"body of frame {frame.name!r} in {path}", frame.body, bodies)
+        if frame.name in taken:
+            raise ModelError(
+                f"{path}: frame {frame.name!r}: the model has a body or site of that name "
+                "already; name the added frame otherwise, or use the model's"
+            )
+        quat = np.empty(4)
+        mujoco.mju_euler2Quat(quat, np.asarray(frame.rpy, dtype=float), "XYZ")
+        body.add_site(name=frame.name, pos=list(frame.pos), quat=list(quat), group=5)
+        taken.add(frame.name)
+
+
 def _mujoco_model(
-    source: ModelSource, pin_model: pin.Model, joint_names: tuple[str, ...], notes: list[str]
+    source: ModelSource, notes: list[str], frames: tuple[ExtraFrame, ...] = ()
 ) -> tuple[mujoco.MjModel, mujoco.MjSpec]:
     path = source.path
     spec = _mujoco_spec(source)
-    # Both libraries must see the file's inertials, not geom-derived ones, and the free joint
-    # at the body origin. The file's balanceinertia is kept: it is the file's statement.
-    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    _add_frames(path, spec, frames)
+    # the free joint at the body origin, where the file puts the root body's frame
     spec.compiler.alignfree = False
     if source.is_urdf:
-        _urdf_to_floating(spec, pin_model, joint_names)
-    elif not _plain_motors(spec, joint_names):
-        _replace_actuators(spec, joint_names)
+        # a URDF link without <inertial> is massless (not MuJoCo's geom-derived inertia)
+        spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+        _urdf_to_floating(spec, source.urdf_limits)
+    joint_names = _robot_joints(path, spec)
+    if not source.is_urdf and not _plain_motors(spec, joint_names):
+        _replace_actuators(spec, joint_names, notes)
+    _drop_unrepresentable(path, spec, notes)
+    unbalanced = [b.name for b in spec.bodies if _inertia_breaks_triangle(b)]
+    if unbalanced and not spec.compiler.balanceinertia:
+        spec.compiler.balanceinertia = True
+        why = "the file does not set balanceinertia and MuJoCo cannot simulate them as written"
+    else:
+        why = "the file sets balanceinertia"
+    if unbalanced:
+        shown = ", ".join(unbalanced[:6]) + (", …" if len(unbalanced) > 6 else "")
+        notes.append(
+            f"inertias that break A + B >= C in {len(unbalanced)} of the file's bodies ({shown}): "
+            f"MuJoCo balanced them ({why}) and the controllers' model uses the same balanced "
+            "values; fix those <inertial>s to keep the file's"
+        )
     if _add_floor(spec):
-        notes.append("the file has no floor: a plane at z = 0 was added")
-    try:
-        return spec.compile(), spec
-    except Exception as exc:
-        if "balanceinertia" not in str(exc) or source.sets_balanceinertia:
-            raise ModelError(f"{path}: MuJoCo cannot compile it: {exc}") from exc
-        where = next((line for line in str(exc).splitlines() if "Element name" in line), "")
-        body = where.split("'")[1] if where.count("'") >= 2 else "?"
-    # MuJoCo rejects inertias that break the triangle inequality (A + B ≥ C); the file does not
-    # say whether to balance them, so MuJoCo does and the simulation differs from the
-    # controllers' model there. The harness balances nothing on its own: Pinocchio keeps the
-    # file's inertias.
-    spec.compiler.balanceinertia = True
-    warnings.warn(
-        f"{path}: body {body!r}: its inertia breaks A + B >= C, which MuJoCo cannot simulate; "
-        "MuJoCo balances it, Pinocchio keeps the file's, so the simulated and the controllers' "
-        "models differ there; fix that <inertial>, or state balanceinertia in the file's "
-        "<compiler>",
-        stacklevel=2,
-    )
+        notes.append(
+            "the file has no floor: a plane at z = 0 was added (contype 1, conaffinity 1, "
+            "condim 3, friction 1, not the file's geom defaults)"
+        )
     try:
         return spec.compile(), spec
     except Exception as exc:
         raise ModelError(f"{path}: MuJoCo cannot compile it: {exc}") from exc
 
 
+#: the collision settings of the floor the loader adds (never the file's geom defaults)
+FLOOR = {
+    "contype": 1,
+    "conaffinity": 1,
+    "condim": 3,
+    "friction": [1.0, 0.005, 0.0001],
+    "solref": [0.02, 1.0],
+    "solimp": [0.9, 0.95, 0.001, 0.5, 2.0],
+    "margin": 0.0,
+    "gap": 0.0,
+    "priority": 0,
+}
+
+
 def _add_floor(spec: mujoco.MjSpec) -> bool:
     """A floor plane at z = 0 when the world has none (URDFs never have one); whether added."""
-    for geom in spec.worldbody.geoms:
-        if geom.type == mujoco.mjtGeom.mjGEOM_PLANE:
+    for geom in spec.geoms:
+        if geom.type == mujoco.mjtGeom.mjGEOM_PLANE and geom.parent.name == spec.worldbody.name:
             return False
-    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05])
+    spec.worldbody.add_geom(
+        name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05], **FLOOR
+    )
     return True
 
 
-def _urdf_to_floating(spec: mujoco.MjSpec, pin_model: pin.Model, joints: tuple[str, ...]) -> None:
+def _urdf_to_floating(spec: mujoco.MjSpec, limits: dict[str, tuple[float, float]]) -> None:
     """Free joint on the root link, URDF effort limits as force limits, one motor per joint."""
     spec.compiler.fusestatic = False  # keep fixed links as bodies: they are named frames
     root = spec.worldbody.first_body()
     if root is None:
         raise ModelError("URDF has no links")
     root.add_freejoint(name="root")
-    for i, name in enumerate(joints):
-        effort = float(pin_model.effortLimit[6 + i])
-        joint = spec.joint(name)
-        if np.isfinite(effort) and effort > 0:
+    joints = [j.name for j in spec.joints if j.type != mujoco.mjtJoint.mjJNT_FREE]
+    for name in joints:
+        effort = limits.get(name, (np.inf, np.inf))[0]
+        if np.isfinite(effort):
+            joint = spec.joint(name)
             joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
             joint.actfrcrange = [-effort, effort]
-    _add_motors(spec, joints)
+    _add_motors(spec, tuple(joints))
 
 
 def _is_limited(flag: int, rng: np.ndarray) -> bool:
@@ -468,12 +560,34 @@ def _plain_motors(spec: mujoco.MjSpec, joints: tuple[str, ...]) -> bool:
     return all(_is_plain_motor(a) for a in spec.actuators) and sorted(targets) == sorted(joints)
 
 
-def _replace_actuators(spec: mujoco.MjSpec, joints: tuple[str, ...]) -> None:
+def _actuator_kind(act: mujoco.MjsActuator) -> str:
+    if act.trntype != mujoco.mjtTrn.mjTRN_JOINT:
+        return f"{act.trntype.name[6:].lower()} actuator"
+    if act.dyntype != mujoco.mjtDyn.mjDYN_NONE:
+        return f"{act.dyntype.name[6:].lower()} actuator"
+    if act.biastype == mujoco.mjtBias.mjBIAS_AFFINE:
+        return "position/velocity servo"
+    if act.gainprm[0] != 1.0:
+        return f"motor with gain {act.gainprm[0]:g}"
+    return "motor"
+
+
+def _replace_actuators(spec: mujoco.MjSpec, joints: tuple[str, ...], notes: list[str]) -> None:
     """Swap whatever actuators the file has (position servos …) for one torque motor per joint.
 
     A whole-body controller commands torques; a servo's force limit becomes the torque limit
     when the joint has none.
     """
+    kinds: dict[str, int] = {}
+    for act in spec.actuators:
+        kind = _actuator_kind(act)
+        kinds[kind] = kinds.get(kind, 0) + 1
+    listed = ", ".join(f"{n} {kind}{'s' if n > 1 else ''}" for kind, n in kinds.items())
+    notes.append(
+        f"the file's actuators ({listed or 'none'}) were replaced by one torque motor per joint "
+        f"({len(joints)}): the controllers command joint torques; a servo's forcerange became "
+        "the joint's torque limit where the joint states none"
+    )
     for act in list(spec.actuators):
         if act.target in joints and _is_limited(act.forcelimited, act.forcerange):
             joint = spec.joint(act.target)
@@ -516,8 +630,10 @@ def simulation_model(
     robot: Robot,
     soles: dict[str, tuple[float, float, float, float]],
     exclude: Sequence[tuple[str, str]] = (),
+    payloads: Sequence[tuple[str, float, Sequence[float]]] = (),
+    actuator_lag: float = 0.0,
 ) -> mujoco.MjModel:
-    """``robot``'s MuJoCo model (a fresh copy) with two edits of a scenario's simulation.
+    """``robot``'s MuJoCo model (a fresh copy) with the edits of a scenario's simulation.
 
     ``exclude``: pairs of bodies whose contacts with each other are not simulated (MuJoCo's
     ``<contact><exclude>``).
@@ -526,14 +642,22 @@ def simulation_model(
     geoms of the bodies welded to the frame collide with nothing, and a box (x_min, x_max,
     y_min, y_max [m] in the frame, :data:`SOLE_BOX_HEIGHT` high) whose bottom face lies in the
     frame's x–y plane takes their place, with the contact parameters of the first geom it
-    replaces (MuJoCo's defaults when the feet had none).
-    Masses and inertias are the file's either way (inertias are never taken from geoms here).
+    replaces (the added floor's collision settings, :data:`FLOOR`, when none of them collides).
+    The box is massless: masses and inertias are those of ``robot.mj_model`` either way.
+
+    ``payloads``: ``(frame, mass [kg], offset (3,) [m])``, a point mass welded to the body that
+    carries the frame, ``offset`` from that body's origin in its axes (a body of its own, so
+    the file's bodies keep their inertias).
+
+    ``actuator_lag``: a first-order time constant [s] on every motor (MuJoCo's exact filter
+    dynamics, applied in the same step: the motor's torque follows its command as
+    1 − exp(−t / lag)).
 
     Raises:
         ModelError: the robot keeps no MuJoCo spec, a frame is not in the MuJoCo model, or the
             edited model does not compile.
     """
-    if not soles and not exclude:
+    if not soles and not exclude and not payloads and not actuator_lag:
         return robot.fresh_mj_model()
     if robot.mj_spec is None:
         raise ModelError(f"{robot.path}: no MuJoCo spec kept to edit the feet of")
@@ -556,6 +680,10 @@ def simulation_model(
                         "solimp": list(geom.solimp),
                     }
                     geom.contype = geom.conaffinity = 0
+        if not contact:
+            # no foot geom collides: the box collides as the added floor does, never with the
+            # file's geom defaults (which may collide with nothing)
+            contact = {k: v for k, v in FLOOR.items() if k not in ("margin", "gap", "priority")}
         half = np.array([(x1 - x0) / 2, (y1 - y0) / 2, SOLE_BOX_HEIGHT / 2])
         centre = p + R @ np.array([(x0 + x1) / 2, (y0 + y1) / 2, SOLE_BOX_HEIGHT / 2])
         quat = np.empty(4)
@@ -566,10 +694,31 @@ def simulation_model(
             size=half,
             pos=centre,
             quat=quat,
+            # massless: a body whose inertia MuJoCo derives from its geoms keeps the one the
+            # controllers' model was built from
+            density=0.0,
             **contact,
         )
     for first, second in exclude:
         spec.add_exclude(bodyname1=first, bodyname2=second)
+    for i, (frame, mass, offset) in enumerate(payloads):
+        body = frame_body(m, frame)
+        if body <= 0:
+            raise ModelError(f"{robot.path}: MuJoCo has no body or site {frame!r}")
+        # a point mass; MuJoCo asks every body for a positive inertia
+        spec.body(m.body(body).name).add_body(
+            name=f"payload_{i}_on_{m.body(body).name}",
+            pos=list(offset),
+            mass=mass,
+            inertia=[1e-6 * mass] * 3,
+            explicitinertial=True,
+        )
+    if actuator_lag > 0:
+        for a in robot.actuator_ids:
+            act = spec.actuator(m.actuator(int(a)).name)
+            act.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
+            act.dynprm[0] = actuator_lag
+            act.actearly = True
     try:
         return spec.compile()
     except Exception as exc:
@@ -598,8 +747,9 @@ def _assemble(
     info: RobotInfo,
     m: mujoco.MjModel,
     pin_model: pin.Model,
-    joint_names: tuple[str, ...],
+    urdf_limits: dict[str, tuple[float, float]],
 ) -> Robot:
+    joint_names = tuple(pin_model.names[i] for i in range(2, pin_model.njoints))
     free = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
     if len(free) != 1 or m.jnt_qposadr[free[0]] != 0 or m.jnt_dofadr[free[0]] != 0:
         raise ModelError(f"{path}: MuJoCo needs exactly one free joint, on the root body")
@@ -634,8 +784,10 @@ def _assemble(
     if info.velocity_limits:
         v_max = np.array([info.velocity_limits.get(j, np.inf) for j in joint_names])
     else:
-        v_max = np.asarray(pin_model.velocityLimit[6:], dtype=float).copy()
-        v_max[v_max >= np.finfo(float).max] = np.inf
+        v_max = np.array([urdf_limits.get(j, (np.inf, np.inf))[1] for j in joint_names])
+    # the limits the file states, on Pinocchio's side too (MuJoCo has no velocity limit)
+    pin_model.effortLimit[6:] = tau_max
+    pin_model.velocityLimit[6:] = v_max
 
     dof = m.jnt_dofadr[jid]
     frames: dict[str, int] = {}

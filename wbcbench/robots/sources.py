@@ -8,15 +8,15 @@ robot package ships:
   ``example-robot-data`` (its cmeel prefix); relative mesh paths become absolute.
 - URDF ``<mimic>`` joints are written as fixed joints at their offset (the master joint's zero):
   a whole-body controller drives every joint with its own torque, and a mimic joint has none.
-- MJCF ``<include file=…>`` elements are inlined (MuJoCo resolves them itself; Pinocchio's MJCF
-  parser does not), each path relative to the main file's folder as MuJoCo does.
+- MJCF ``<include file=…>`` elements are checked here (a missing or circular include is named
+  with its element); MuJoCo reads the file itself and resolves them.
+- URDF effort and velocity limits are read here: MuJoCo's URDF reader keeps neither.
 
 Every failure is a :class:`~wbcbench.errors.ModelError` naming the file, the element and the fix.
 """
 
 from __future__ import annotations
 
-import os
 import sys
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
@@ -39,14 +39,15 @@ class ModelSource:
         text: the rewritten XML (absolute mesh paths, includes inlined, mimic joints fixed).
         is_urdf: URDF (True) or MJCF.
         mimic_joints: URDF joints that mimic another, fixed at their offset (name → master).
-        sets_balanceinertia: the file's ``<compiler>`` sets ``balanceinertia`` itself.
+        urdf_limits: URDF joint name → (effort [N·m], velocity [rad/s]) from its ``<limit>``;
+            ``inf`` where the file gives none or zero.
     """
 
     path: Path
     text: str
     is_urdf: bool
     mimic_joints: dict[str, str]
-    sets_balanceinertia: bool
+    urdf_limits: dict[str, tuple[float, float]]
 
 
 def default_package_dirs() -> list[Path]:
@@ -80,9 +81,24 @@ def read_source(path: Path, package_dirs: Sequence[Path] = ()) -> ModelSource:
         mimic = _fix_mimic_joints(path, root)
     elif any(True for _ in root.iter("include")):
         _inline_includes(path, root, path.parent, [path.resolve()])
-        _absolute_asset_dirs(root, path.parent)
-    sets_balance = any("balanceinertia" in c.attrib for c in root.iter("compiler"))
-    return ModelSource(path, ET.tostring(root, encoding="unicode"), is_urdf, mimic, sets_balance)
+    limits = _urdf_limits(path, root) if is_urdf else {}
+    return ModelSource(path, ET.tostring(root, encoding="unicode"), is_urdf, mimic, limits)
+
+
+def _urdf_limits(path: Path, root: ET.Element) -> dict[str, tuple[float, float]]:
+    out = {}
+    for joint in root.iter("joint"):
+        limit = joint.find("limit")
+        if limit is None:
+            continue
+        name = joint.get("name", "")
+        try:
+            values = [abs(float(limit.get(key, "0"))) for key in ("effort", "velocity")]
+        except ValueError as exc:
+            raise ModelError(f"{path}: <joint name={name!r}> <limit>: {exc}") from None
+        effort, velocity = (v if v > 0 else float("inf") for v in values)
+        out[name] = (effort, velocity)
+    return out
 
 
 def resolve_package_path(uri: str, package_dirs: Sequence[Path], file: Path, element: str) -> Path:
@@ -216,22 +232,3 @@ def _inline_includes(path: Path, root: ET.Element, base: Path, stack: list[Path]
             parent.remove(child)
             for offset, item in enumerate(list(included)):
                 parent.insert(index + offset, item)
-
-
-def _absolute_asset_dirs(root: ET.Element, base: Path) -> None:
-    """Asset folders made absolute, so that the inlined text reads the same files elsewhere."""
-    compilers = list(root.iter("compiler")) or [ET.SubElement(root, "compiler")]
-    for compiler in compilers:
-        for key in ("meshdir", "texturedir", "assetdir"):
-            value = compiler.get(key)
-            if value is not None and not Path(value).is_absolute():
-                compiler.set(key, str(base / value))
-    if not any(c.get("meshdir") or c.get("assetdir") for c in compilers):
-        compilers[0].set("meshdir", str(base))
-
-
-def write_for_pinocchio(source: ModelSource, folder: str | os.PathLike[str]) -> Path:
-    """``source.text`` as a file in ``folder`` (Pinocchio's MJCF reader takes only files)."""
-    target = Path(folder) / f"{source.path.stem}.flat{source.path.suffix}"
-    target.write_text(source.text, encoding="utf-8")
-    return target

@@ -9,6 +9,7 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import json
+import typing
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +22,10 @@ from pydantic import BaseModel, ValidationError
 from wbcbench.errors import ScenarioError, UnknownNameError, WbcBenchError
 from wbcbench.scenarios.schema import (
     REFERENCE_DIM_FIELD,
+    Boolean,
     ContactSpec,
+    PerturbationsSpec,
+    Reference,
     Scenario,
     TaskSpec,
 )
@@ -35,6 +39,7 @@ SCENARIO_DIR = Path(__file__).resolve().parents[2] / "scenarios"
 # at them, so that stored results keep matching their scenarios.
 _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("package_dirs",), []),
+    (("frames",), {}),
     (("initial", "joints"), None),
     (("initial", "srdf"), None),
     (("initial", "state"), None),
@@ -44,6 +49,7 @@ _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("sim", "touchdown_load"), 20.0),
     (("sim", "landing_tolerance"), 0.02),
     (("walk",), None),
+    (("perturbations",), PerturbationsSpec().model_dump(mode="json")),
 )
 # the same for keys of each contact
 _LATER_CONTACT_KEYS: tuple[tuple[str, Any], ...] = (
@@ -155,6 +161,10 @@ def _message(err: dict[str, Any], root: type[BaseModel] = Scenario) -> str:
         return f"unknown key {loc[-1]!r}; valid keys: {', '.join(valid)}"
     if kind == "missing":
         return "required key is missing"
+    if isinstance(err.get("input"), Boolean):
+        return f"expected a number, got the boolean {err['input']!r}"
+    if kind == "union_tag_not_found":
+        return f"required key 'type' is missing; valid types: {', '.join(reference_types())}"
     if kind == "union_tag_invalid":
         ctx = err.get("ctx", {})
         return f"unknown type {ctx.get('tag')!r}; valid choices: {ctx.get('expected_tags')}"
@@ -163,6 +173,12 @@ def _message(err: dict[str, Any], root: type[BaseModel] = Scenario) -> str:
         return f"invalid value {err.get('input')!r}; valid choices: {expected}"
     msg = str(err["msg"])
     return msg.removeprefix("Value error, ")
+
+
+def reference_types() -> list[str]:
+    """The ``type`` of every reference trajectory, as a scenario file spells it."""
+    union = typing.get_args(Reference)[0]
+    return [typing.get_args(m.model_fields["type"].annotation)[0] for m in typing.get_args(union)]
 
 
 def validation_error(
@@ -238,11 +254,15 @@ def apply_override(raw: dict[str, Any], assignment: str, file: str) -> None:
 def resolve_scenario_path(name_or_path: str | Path) -> Path:
     """A path, or the name of a scenario in the top-level ``scenarios/`` folder."""
     p = Path(name_or_path)
-    if p.exists():
+    if p.is_file():
         return p
     for candidate in (SCENARIO_DIR / f"{name_or_path}.yaml", SCENARIO_DIR / str(name_or_path)):
-        if candidate.exists():
+        if candidate.is_file():
             return candidate
+    if p.is_dir():
+        raise ScenarioError(str(p), "", "no such file: a folder, not a scenario file")
+    if len(p.parts) > 1 or p.suffix in (".yaml", ".yml"):  # a path, not a scenario's name
+        raise ScenarioError(str(p), "", "no such file")
     raise UnknownNameError(
         "scenario", str(name_or_path), available_scenarios(), hint="or give a path to a YAML file"
     )
@@ -299,6 +319,27 @@ def _fit_window_to_overridden_duration(raw: dict[str, Any], overrides: Sequence[
         metrics["window"] = [min(window[0], duration / 2), duration]
 
 
+class UniqueKeyLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, but a key given twice in one mapping is an error naming both
+    lines (PyYAML keeps the last silently)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            line = key_node.start_mark.line + 1
+            if isinstance(key, typing.Hashable) and key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None,
+                    None,
+                    f"duplicate key {key!r} (first at line {seen[key]})",
+                    key_node.start_mark,
+                )
+            if isinstance(key, typing.Hashable):
+                seen[key] = line
+        return super().construct_mapping(node, deep=deep)
+
+
 def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
     """The YAML mapping in ``path``; every way a file can be unreadable is a ScenarioError
     naming it (a folder, another encoding than UTF-8, binary data, absurd nesting, not YAML)."""
@@ -319,7 +360,7 @@ def read_yaml_mapping(path: Path, what: str) -> dict[str, Any]:
     if "\x00" in text:
         raise ScenarioError(file, "", f"holds binary data (a NUL byte), not {what}")
     try:
-        raw = yaml.safe_load(text)
+        raw = yaml.load(text, Loader=UniqueKeyLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -379,6 +420,14 @@ def _check_consistency(file: str, spec: Scenario) -> None:
             raise ScenarioError(
                 file, f"contacts[{i}].fmax", f"fmax = {c.fmax:g} N is below fmin = {c.fmin:g} N"
             )
+    if spec.kind == "dynamic" and not spec.contacts:
+        raise ScenarioError(
+            file,
+            "contacts",
+            "a dynamic scenario needs at least one contact: the torque-level controllers hold "
+            "the floating base on its contacts (a robot with none, or a fixed base, is not "
+            "supported)",
+        )
     if spec.duration * spec.control_rate < 1:
         raise ScenarioError(
             file,
@@ -398,6 +447,13 @@ def _check_consistency(file: str, spec: Scenario) -> None:
     if spec.kind == "kinematic" and spec.initial.settle > 0:
         raise ScenarioError(
             file, "initial.settle", "a kinematic scenario has no physics to settle; remove it"
+        )
+    if spec.kind == "kinematic" and spec.perturbations.active:
+        raise ScenarioError(
+            file,
+            "perturbations",
+            "a kinematic scenario has no physics to perturb; perturbations apply to dynamic "
+            "scenarios (kind: dynamic)",
         )
     if spec.kind == "dynamic":
         steps = 1.0 / (spec.control_rate * spec.sim.timestep)
@@ -592,17 +648,42 @@ def _check_reference_dim(file: str, i: int, task: TaskSpec) -> None:
 
 
 def load_scenario_robot(loaded: LoadedScenario) -> Any:
-    """The scenario's robot; a robot that cannot be loaded is an error at the key ``robot``."""
-    from wbcbench.robots.loader import load_robot
+    """The scenario's robot, with the scenario's ``frames:`` added; a robot that cannot be
+    loaded is an error at the key ``robot``, a frame on an unknown body one at
+    ``frames.<name>.body``."""
+    from wbcbench.robots.loader import ExtraFrame, load_robot
 
+    frames = tuple(ExtraFrame(name, f.body, f.pos, f.rpy) for name, f in loaded.spec.frames.items())
     try:
-        return load_robot(
+        robot = load_robot(
             loaded.spec.robot, base_dir=loaded.path.parent, package_dirs=loaded.spec.package_dirs
         )
     except ScenarioError:
         raise
     except WbcBenchError as exc:
         raise ScenarioError(str(loaded.path), "robot", str(exc)) from None
+    if not frames:
+        return robot
+    # the added frames checked on the file's robot, so that an error names its scenario key
+    m = robot.mj_model
+    bodies = [m.body(b).name for b in range(1, m.nbody)]
+    for frame in frames:
+        key = f"frames.{frame.name}"
+        if frame.body not in bodies:
+            unknown = UnknownNameError("body", frame.body, bodies)
+            raise ScenarioError(str(loaded.path), f"{key}.body", str(unknown))
+        if robot.has_frame(frame.name):
+            raise ScenarioError(
+                str(loaded.path),
+                key,
+                f"the robot has a body or site {frame.name!r} already; name the frame otherwise",
+            )
+    return load_robot(
+        loaded.spec.robot,
+        base_dir=loaded.path.parent,
+        package_dirs=loaded.spec.package_dirs,
+        frames=frames,
+    )
 
 
 def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
@@ -665,6 +746,15 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
                 f"sim.self_collision.exclude[{i}]",
                 f"a pair of two bodies, got {pair[0]!r} twice (a body never collides with itself)",
             )
+    pert = spec.perturbations
+    named = [(f"perturbations.pushes[{i}].body", p.body) for i, p in enumerate(pert.pushes)]
+    if pert.model.payload is not None:
+        named.append(("perturbations.model.payload.body", pert.model.payload.body))
+    for key, body in named:
+        from wbcbench.robots.loader import frame_body
+
+        if frame_body(robot.mj_model, body) <= 0:
+            raise ScenarioError(file, key, str(UnknownNameError("body", body, bodies)))
     if spec.initial.source != "keyframe":
         from wbcbench.scenarios.initial import initial_joints
 

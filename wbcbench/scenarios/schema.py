@@ -7,16 +7,71 @@ Checks that need the robot (frame and joint names, keyframes) happen in
 
 from __future__ import annotations
 
+import types
+import typing
+from itertools import pairwise
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 Vector = list[float]
 
+#: the largest task priority (levels are numbered from 1, the highest)
+MAX_PRIORITY = 1000
+
+
+def _numeric(ann: Any) -> bool:
+    """Whether a field's annotation holds numbers only (``float``, ``int``, lists, tuples and
+    dict values of them, optional or not)."""
+    if ann in (float, int):
+        return True
+    origin, args = typing.get_origin(ann), typing.get_args(ann)
+    if origin in (typing.Union, types.UnionType):
+        members = [a for a in args if a is not type(None)]
+        return bool(members) and all(_numeric(a) for a in members)
+    if origin in (list, tuple):
+        return bool(args) and all(_numeric(a) for a in args if a is not Ellipsis)
+    if origin is dict:
+        return _numeric(args[1])
+    return False
+
+
+class Boolean:
+    """A YAML boolean found where a number is expected: it fails the number's validation (its
+    error, at the key's path, says so), where pydantic would read ``true`` as 1."""
+
+    def __init__(self, value: bool) -> None:
+        self.value = value
+
+    def __repr__(self) -> str:
+        return str(self.value).lower()
+
+
+def _mark_booleans(value: Any) -> Any:
+    if isinstance(value, bool):
+        return Boolean(value)
+    if isinstance(value, list | tuple):
+        return [_mark_booleans(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _mark_booleans(v) for k, v in value.items()}
+    return value
+
 
 class Strict(BaseModel):
     # every float in a scenario must be finite: NaN or ±inf never describes a set-up
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _numbers_are_not_booleans(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        return {
+            key: _mark_booleans(value)
+            if key in cls.model_fields and _numeric(cls.model_fields[key].annotation)
+            else value
+            for key, value in data.items()
+        }
 
 
 # -- reference trajectories
@@ -130,13 +185,25 @@ class TaskSpec(Strict):
     frame: str | None = None
     axes: list[str] | None = None
     joints: list[str] | None = None
-    priority: int = Field(1, ge=1)
+    priority: int = Field(1, ge=1, le=MAX_PRIORITY, strict=True)
     weight: float | None = Field(None, gt=0)
     kp: float | Vector = 100.0
     kv: float | Vector = 20.0
     reference: Reference | None = None
     absolute: bool = False
     level: Literal["acceleration", "force"] = "acceleration"
+
+    @field_validator("joints")
+    @classmethod
+    def _joints_once(cls, v: list[str] | None) -> list[str] | None:
+        if v is None:
+            return v
+        if not v:
+            raise ValueError("an empty list; name at least one joint, or leave 'joints' out")
+        repeated = sorted({j for j in v if v.count(j) > 1})
+        if repeated:
+            raise ValueError(f"each joint at most once; repeated: {', '.join(repeated)}")
+        return v
 
     @model_validator(mode="after")
     def _consistent(self) -> TaskSpec:
@@ -204,6 +271,21 @@ class ContactSpec(Strict):
         "model",
         description="what the simulation's foot is: the model's own geometry, or the sole box "
         "(the cop box, or the robot's sole size) at the contact frame in its place",
+    )
+
+
+class FrameSpec(Strict):
+    """A frame fixed to a body of the robot at an offset: a contact's sole plane, or a task's
+    point, that the model file does not mark (added to the model as a site; no file edit)."""
+
+    body: str = Field(description="the body that carries the frame")
+    pos: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="the frame's origin in the body's frame [m]"
+    )
+    rpy: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0),
+        description="the frame's orientation in the body's frame: roll, pitch, yaw [rad] "
+        "(R = Rz(yaw) Ry(pitch) Rx(roll))",
     )
 
 
@@ -423,6 +505,113 @@ class WalkSpec(Strict):
         return self.first or self.feet[0]
 
 
+# -- perturbations: what a real robot meets and the ideal run does not
+
+Vec3 = tuple[float, float, float]
+
+
+class PushSpec(Strict):
+    """An external wrench on a body of the simulated robot over ``[start, start + duration]``.
+
+    MuJoCo applies it at the body's centre of mass (``xfrc_applied``), set before every physics
+    step; the controller is never told. ``shape`` scales it over the interval: ``pulse`` holds
+    it (impulse = force × duration), ``half_sine`` rises and falls as sin(π s / duration)
+    (impulse = force × duration × 2/π); ``profile`` gives the scale instead, as
+    ``[[s, scale], …]`` pieces joined linearly (s from ``start`` [s]).
+    """
+
+    body: str = Field(description="a body of the robot, or a frame that names its body")
+    start: float = Field(ge=0, le=3600, description="[s] from the run's start")
+    duration: float = Field(gt=0, le=3600, description="[s]")
+    force: Vec3 = Field((0.0, 0.0, 0.0), description="[N]")
+    torque: Vec3 = Field((0.0, 0.0, 0.0), description="[N·m]")
+    frame: Literal["world", "body"] = Field(
+        "world", description="the axes of force and torque: the world's or the body's (moving)"
+    )
+    shape: Literal["pulse", "half_sine"] = "pulse"
+    profile: list[tuple[float, float]] | None = None
+
+    @model_validator(mode="after")
+    def _profile(self) -> PushSpec:
+        if self.profile is not None:
+            times = [p[0] for p in self.profile]
+            if len(times) < 2 or any(b <= a for a, b in pairwise(times)):
+                raise ValueError(f"profile times must be at least two, increasing, got {times}")
+            if times[0] < 0 or times[-1] > self.duration:
+                raise ValueError(
+                    f"profile times must lie in [0, duration = {self.duration:g}], got {times}"
+                )
+        return self
+
+
+class SensingSpec(Strict):
+    """What the controller measures: the simulated state with seeded Gaussian noise on the
+    joint positions and rates (the floating base's state, an estimator's job, stays exact),
+    and a delay between that measurement and the torque it gives."""
+
+    q_noise: float = Field(0.0, ge=0, le=1, description="noise std on each joint position [rad]")
+    v_noise: float = Field(0.0, ge=0, le=100, description="noise std on each joint rate [rad/s]")
+    delay: int = Field(
+        0, ge=0, le=1000, description="control ticks between a measurement and its torque"
+    )
+
+
+class ActuationSpec(Strict):
+    """What the motors do with a commanded torque: rounded to a step, then a first-order lag."""
+
+    lag: float = Field(0.0, ge=0, le=1, description="first-order time constant [s]; 0: none")
+    quantum: float = Field(0.0, ge=0, le=100, description="torque quantisation step [N·m]")
+
+
+class PayloadSpec(Strict):
+    """A point mass fixed to a body of the simulated robot that the controller does not know."""
+
+    body: str
+    mass: float = Field(gt=0, le=1000, description="[kg]")
+    offset: Vec3 = Field((0.0, 0.0, 0.0), description="from the body's origin, its axes [m]")
+
+
+class ModelErrorSpec(Strict):
+    """How the controller's model differs from the simulated robot.
+
+    ``mass_scale``, ``inertia_scale`` and ``com_offset`` change the controller's Pinocchio
+    model (every link's mass and rotational inertia scaled, every link's centre of mass moved
+    in its joint's frame); ``payload`` changes the simulated model (MuJoCo) instead.
+    """
+
+    mass_scale: float = Field(1.0, gt=0, le=10)
+    inertia_scale: float | None = Field(
+        None, gt=0, le=10, description="rotational inertias; mass_scale when omitted"
+    )
+    com_offset: Vec3 = Field((0.0, 0.0, 0.0), description="[m], each link in its own frame")
+    payload: PayloadSpec | None = None
+
+
+class PerturbationsSpec(Strict):
+    """Disturbances, sensing, actuation and model error; everything off by default."""
+
+    seed: int = Field(0, ge=0, description="seeds the sensing noise")
+    pushes: list[PushSpec] = Field(default_factory=list)
+    sensing: SensingSpec = Field(default_factory=lambda: SensingSpec())
+    actuation: ActuationSpec = Field(default_factory=lambda: ActuationSpec())
+    model: ModelErrorSpec = Field(default_factory=lambda: ModelErrorSpec())
+
+    @property
+    def active(self) -> bool:
+        """Whether anything differs from the ideal run."""
+        return bool(self.summary())
+
+    def summary(self) -> dict[str, Any]:
+        """The keys that differ from their defaults (the seed only beside noise)."""
+        out = self.model_dump(mode="json", exclude_defaults=True)
+        noisy = self.sensing.q_noise > 0 or self.sensing.v_noise > 0
+        if not noisy:
+            out.pop("seed", None)
+        elif "seed" not in out:
+            out["seed"] = self.seed
+        return out
+
+
 class Scenario(Strict):
     """A declarative benchmark scenario."""
 
@@ -438,6 +627,10 @@ class Scenario(Strict):
         default_factory=list,
         description="folders that hold the packages of the robot's package:// paths, relative "
         "to the scenario's folder",
+    )
+    frames: dict[str, FrameSpec] = Field(
+        default_factory=dict,
+        description="frames added to the robot, by name: {body, pos [m], rpy [rad]}",
     )
     kind: Literal["dynamic", "kinematic"] = Field(
         "dynamic",
@@ -457,6 +650,10 @@ class Scenario(Strict):
     metrics: MetricsSpec = Field(default_factory=lambda: MetricsSpec())
     walk: WalkSpec | None = None
     environment: EnvironmentSpec = Field(default_factory=lambda: EnvironmentSpec())
+    perturbations: PerturbationsSpec = Field(
+        default_factory=lambda: PerturbationsSpec(),
+        description="pushes, sensing noise and delay, actuator lag, model error (all off)",
+    )
 
     # Checks across fields (unique names, the window inside the duration, the control period a
     # multiple of the physics step, fmin ≤ fmax) live in wbcbench.scenarios.load, where each

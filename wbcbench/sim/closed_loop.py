@@ -38,6 +38,7 @@ from wbcbench.robots.loader import Robot, simulation_model, welded_bodies
 from wbcbench.runs import Run
 from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import LoadedScenario, sole_boxes, torque_limits
+from wbcbench.sim.perturbations import Pushes, Sensing
 from wbcbench.tasks.schedule import ContactSchedule
 
 STAGES = ("dynamics", "build", "solve", "solve_internal", "total")
@@ -202,8 +203,15 @@ class Rejections:
 
 def prepare_model(robot: Robot, loaded: LoadedScenario) -> mujoco.MjModel:
     """A copy of the robot's MuJoCo model with the scenario's simulation settings applied."""
-    sim = loaded.spec.sim
-    model = simulation_model(robot, sole_boxes(loaded.spec, robot), sim.excluded_pairs)
+    sim, pert = loaded.spec.sim, loaded.spec.perturbations
+    payload = pert.model.payload
+    model = simulation_model(
+        robot,
+        sole_boxes(loaded.spec, robot),
+        sim.excluded_pairs,
+        payloads=[(payload.body, payload.mass, payload.offset)] if payload else [],
+        actuator_lag=pert.actuation.lag,
+    )
     model.opt.timestep = sim.timestep
     model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{sim.integrator.upper()}")
     if not sim.joint_friction:
@@ -278,13 +286,19 @@ def run_closed_loop(
 
     controller = run.make_controller(wrap_solver)
     schedule = controller.ctx.schedule
+    own_robot = controller.ctx.robot  # the simulated one, or one with the model error
+    pert = spec.perturbations
+    perturbed = pert.active
+    pushes = Pushes(model, pert.pushes)
+    sensing = Sensing(pert, robot.k)
     contacts = controller.ctx.contacts
     tau_max = controller.ctx.tau_max
     frames = [c.frame for c in contacts]
     sensor = ContactSensor(model, robot, frames)
     substeps = max(1, round(spec.dt / model.opt.timestep))
     n_ticks = round(spec.duration * spec.control_rate)
-    pin_data = robot.pin_model.createData()
+    pin_data = own_robot.pin_model.createData()
+    true_data = robot.pin_model.createData() if perturbed else None
     unloaded = np.zeros(len(frames), dtype=int)
     log = RunLog()
     task_parts: dict[str, list[str]] = {}
@@ -297,11 +311,11 @@ def run_closed_loop(
     tick = 0
     try:
         q, v = mj_to_pin(robot, data.qpos, data.qvel)
-        controller.start(RobotState(robot, q, v, pin_data))
+        controller.start(RobotState(own_robot, *sensing.measure(q, v), pin_data))
         if spec.initial.settle > 0:
             ticks = round(spec.initial.settle * spec.control_rate)
             last_tau = settle(
-                controller, robot, model, data, pin_data, tau_max, ticks, substeps, check
+                controller, own_robot, model, data, pin_data, tau_max, ticks, substeps, check
             )
         base_z0 = float(data.qpos[2])
         contact_p0 = [sensor.frame_pose(data, i)[0] for i in range(len(frames))]
@@ -325,7 +339,7 @@ def run_closed_loop(
                 for j, i in enumerate(phase.active):
                     held[i] = phase.lower[j] >= 1.0 and phase.upper[j] >= 1.0
             q, v = mj_to_pin(robot, data.qpos, data.qvel)
-            state = RobotState(robot, q, v, pin_data)
+            state = RobotState(own_robot, *sensing.measure(q, v), pin_data)
             out = controller.step(state, t)
             if on_step is not None:
                 on_step(state, out)
@@ -347,9 +361,13 @@ def run_closed_loop(
                         f"{consecutive} failed ticks in a row: {rejected or over or out.message}",
                     )
             last_tau = tau
-            applied = tau + friction_torque(robot, model, v[6:]) if compensate else tau
+            sent = sensing.command(tau)
+            applied = sent + friction_torque(robot, model, v[6:]) if compensate else sent
             data.ctrl[:] = torque_to_ctrl(robot, applied)
-            for _ in range(substeps):
+            if tick == 0 and spec.initial.settle == 0:
+                start_motors(model, data)
+            for step in range(substeps):
+                pushes.apply(data, t + step * model.opt.timestep)
                 mujoco.mj_step(model, data)
 
             row = output_row(t, out, task_parts)
@@ -373,7 +391,15 @@ def run_closed_loop(
                     )
                 row["touchdowns"] = float(len(schedule.confirmed))
             row["base_z"] = float(data.qpos[2])
-            row["com.x"], row["com.y"], row["com.z"] = (float(x) for x in state.com)
+            # the robot's own CoM and task errors: with perturbations the controller's state
+            # (noisy, on its model) is not the robot's; measure it on the simulated one
+            true_state = RobotState(robot, q, v, true_data) if perturbed else state
+            if perturbed:
+                for task in controller.ctx.tasks:
+                    norms = task.error_norms(task.evaluate(true_state, t))
+                    for part, value in norms.items():
+                        row[f"true_err.{task.name}.{part}"] = value
+            row["com.x"], row["com.y"], row["com.z"] = (float(x) for x in true_state.com)
             for name, value in out.diagnostics.items():
                 row[f"diag.{name}"] = value
             log.add(row)
@@ -450,6 +476,7 @@ def settle(
     beyond the torque limits or one ``check`` rejects holds the previous torque as in the run.
     Returns the last torque applied (k,) [N·m]."""
     tau = np.zeros(robot.k)
+    started = False
     for _ in range(ticks):
         q, v = mj_to_pin(robot, data.qpos, data.qvel)
         out = controller.step(RobotState(robot, q, v, pin_data), 0.0)
@@ -457,10 +484,21 @@ def settle(
         if out.ok and not rejected and not torque_excess(out.tau, tau_max, robot.joint_names):
             tau = out.tau
         data.ctrl[:] = torque_to_ctrl(robot, tau)
+        if not started:
+            start_motors(model, data)
+            started = True
         for _ in range(substeps):
             mujoco.mj_step(model, data)
     data.time = 0.0
     return tau
+
+
+def start_motors(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Motors with a lag (an activation state each) start at their first command, not at
+    zero: the run judges the lag's effect on control, not a start from zero torque."""
+    if model.na:
+        stateful = model.actuator_actadr >= 0
+        data.act[model.actuator_actadr[stateful]] = data.ctrl[stateful]
 
 
 def _lost_contact(

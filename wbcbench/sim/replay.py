@@ -97,8 +97,8 @@ def replay(
     (timed) step and may return a failure message that marks the tick failed (e.g. an
     independent validity check); ``wrap_solver`` wraps every solver handle the controller makes.
     """
-    robot = run.robot
     controller = run.make_controller(wrap_solver, keep_problems=keep_problems)
+    robot = controller.ctx.robot  # with the scenario's model error, if any
     data = robot.pin_model.createData()
     columns: dict[str, list[float]] = {}
     failures = 0

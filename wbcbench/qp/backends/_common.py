@@ -117,3 +117,16 @@ def apply_settings(target: Any, options: dict[str, Any], library: str) -> None:
         if not hasattr(target, key):
             raise ValueError(f"{library} has no setting {key!r}")
         setattr(target, key, value)
+
+
+def fill_buffers(buffers: Any, problem: Any, fields: frozenset[str] | None = None) -> None:
+    """Copy ``problem`` (only ``fields`` when given) into native ``QpBuffers`` of its sizes
+    (all fields, after sizing the buffers, when ``fields`` is None)."""
+    if fields is None:
+        buffers.resize(problem.n, problem.n_eq, problem.n_in, problem.has_box)
+        fields = frozenset(("H", "g", "A", "b", "C", "l", "u", "lb", "ub"))
+    for key in ("H", "g", "A", "b", "C", "l", "u"):
+        if key in fields:
+            getattr(buffers, key)[...] = getattr(problem, key)
+    if problem.has_box and fields & {"lb", "ub"}:
+        buffers.lb[...], buffers.ub[...] = problem.box()

@@ -8,9 +8,14 @@ has a box, the first ``n`` entries of the bounds are the simple bounds ``lb, ub`
 H must be positive definite for DAQP's plain iterations. Since WBC Hessians are often only
 semidefinite, this backend sets, unless given: ``eq_reduction = 1`` (eliminate the equality
 constraints first; the reduced Hessian of a well-posed WBC problem is positive definite, and
-on the WBC-like test problem this cuts the iterations from 80 to 26) and ``eps_prox = -1``
-(DAQP's automatic choice: proximal-point outer iterations only when the Hessian it works with
-is singular; they converge to the unregularised optimum).
+on the WBC-like test problem this cuts the iterations from 80 to 26) and ``eps_prox = -1e-6``
+(DAQP's own default: a negative value means proximal-point outer iterations only when the
+Hessian it works with is singular, with the regularisation |eps_prox|; they converge to the
+unregularised optimum). The magnitude matters: with ``eps_prox = -1`` the proximal term
+outweighs the level QPs of ``lqp`` and ``rc_lqp`` (semidefinite H, largest eigenvalue
+0.26–4.4), the outer iterations crawl (700–1600 of them, or DAQP's 10 000 limit) and stop at a
+point whose duality gap the independent check refuses, while DAQP reports it optimal; with
+1e-6 the same QPs take 3–5 iterations and pass (``docs/qp_export.md``).
 
 The :class:`daqp.Model` API is used in all modes. Warm start: ``setup(..., primal_start)`` on a
 fresh model (DAQP derives the initial active set from the guess). Hot: the model is kept and
@@ -107,7 +112,7 @@ class DAQPSolver(QPSolver):
         t0 = time.perf_counter()
         M, (hi, lo), sense = _matrix(problem), _bounds(problem), _sense(problem)
         model = _daqp.Model()
-        model.settings = {"eps_prox": -1.0, "eq_reduction": 1, **self.options}
+        model.settings = {"eps_prox": -1e-6, "eq_reduction": 1, **self.options}
         kwargs: dict[str, Any] = {}
         if guess is not None:
             # Primal only: DAQP 0.11 given the duals of a different problem as dual_start can

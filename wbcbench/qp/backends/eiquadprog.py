@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from wbcbench import _native
+from wbcbench.qp.backends._common import fill_buffers as fill
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Problem
 from wbcbench.qp.solution import Solution, SolutionStatus
@@ -38,18 +39,6 @@ if not hasattr(_native._core, "EiquadprogSolver"):
         "the native module was built without eiquadprog: rebuild it (make native) with the "
         "eiquadprog wheel installed"
     )
-
-
-def fill(buffers: Any, problem: Problem, fields: frozenset[str] | None = None) -> None:
-    """Copy ``problem`` (only ``fields`` when given) into native ``QpBuffers`` of its sizes."""
-    if fields is None:
-        buffers.resize(problem.n, problem.n_eq, problem.n_in, problem.has_box)
-        fields = frozenset(("H", "g", "A", "b", "C", "l", "u", "lb", "ub"))
-    for key in ("H", "g", "A", "b", "C", "l", "u"):
-        if key in fields:
-            getattr(buffers, key)[...] = getattr(problem, key)
-    if problem.has_box and fields & {"lb", "ub"}:
-        buffers.lb[...], buffers.ub[...] = problem.box()
 
 
 class EiquadprogSolver(QPSolver):

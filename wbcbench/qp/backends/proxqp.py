@@ -22,10 +22,10 @@ stops the stall as quickly would fail them.
 Reproducibility: the AVX-512 and AVX2 builds that proxsuite 0.8 loads on such CPUs do not give
 bit-identical results on bit-identical data. Fresh objects in one process, solving the same
 ``rc_lqp`` level QP (12 variables, 46 inequality rows), took 3 223 or 3 224 iterations, and
-the two solutions' ‖x‖² differed by 9e-10 relative. This happened with one thread and whatever
-the alignment of the input arrays; the generic build always gave one result. So a
-ProxQP answer is reproducible to its tolerance only, and an outcome near a threshold (a solve
-that ends just before or at the iteration cap) can change with what the process ran before.
+the two solutions' ‖x‖² differed by 9e-10 relative. This happened with one thread; the generic
+build always gave one result. So wbcbench loads the generic build
+(:mod:`wbcbench.qp.proxsuite_build`; ``WBCBENCH_PROXSUITE=vectorized`` restores proxsuite's own
+choice, faster and reproducible to its tolerance only).
 """
 
 from __future__ import annotations

@@ -106,7 +106,7 @@ def write_tables(folder: str | Path) -> Path:
     ]
     from wbcbench.report.verdicts import markdown, verdicts
 
-    verdict_frame = verdicts(tables)
+    verdict_frame = verdicts(tables, res)
     verdict_frame.to_csv(out / "verdicts.csv", index=False)
     (out / "verdicts.md").write_text(markdown(verdict_frame))
     parts.append(markdown(verdict_frame))
@@ -118,6 +118,9 @@ def write_tables(folder: str | Path) -> Path:
         parts.append(md)
     path = out / "papers.md"
     path.write_text("\n".join(parts))
+    from wbcbench.report.recommend import write_recommendations
+
+    write_recommendations(folder, res)
     (out / "index.json").write_text(
         json.dumps(
             {t.name: {"title": t.title, "has_results": t.frame is not None} for t in tables},

@@ -24,6 +24,38 @@ from wbcbench.report.tables.common import (
     impl_note,
 )
 
+#: the OSF-HQP paper's solver, first among the per-solver verdicts
+PAPER_SOLVER = "qpoases"
+
+
+def table3_pairs(res: Results) -> list[tuple[str, pd.Series, pd.Series]]:
+    """(solver, hqp run, osf_hqp run) for every solver that timed both controllers on Table III's
+    scenario (OSF-HQP's default config; one impl, tier and mode each): the paper's solver first,
+    then by name."""
+    runs = _runs(res, "timing", "lee2021iros_table1*")
+    if runs.empty:
+        return []
+    runs = runs[runs["controller"].isin(["hqp", "osf_hqp"])]
+    runs = runs[[_config(r) == "" for _, r in runs.iterrows()]]
+    out = []
+    for solver in sorted(set(runs["solver"].astype(str)), key=lambda s: (s != PAPER_SOLVER, s)):
+        picked = _pick_timing(runs[runs["solver"] == solver], solver)
+        conv = picked[picked["controller"] == "hqp"]
+        prop = picked[picked["controller"] == "osf_hqp"]
+        if len(conv) and len(prop):
+            out.append((solver, conv.iloc[0], prop.iloc[0]))
+    return out
+
+
+def level_names(res: Results, conv: pd.Series, prop: pd.Series) -> list[tuple[str, str, str]]:
+    """(paper level, hqp's level, osf_hqp's level) for Table III's five levels the runs report."""
+    lc, lp = _levels(res, conv["run_id"]), _levels(res, prop["run_id"])
+    return [
+        (label, lc[i], lp[i])
+        for i, label in enumerate(P.OSF_HQP_LEVELS[:-1])
+        if i < len(lc) and i < len(lp)
+    ]
+
 
 def osf_hqp_table3(res: Results) -> PaperTable:
     t = PaperTable(

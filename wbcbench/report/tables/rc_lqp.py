@@ -60,6 +60,37 @@ def _pick_rc_lqp(runs: pd.DataFrame) -> pd.DataFrame:
     return pd.concat([_pick_timing(runs[runs["solver"] == s], s, "lqp") for s in present])
 
 
+def table3_pairs(res: Results) -> list[tuple[str, str, pd.Series, pd.Series]]:
+    """(support, solver, lqp run, rc_lqp run) of Table 3: per support, the paper's way
+    (``osqp_libdwbc``) first, then the other solvers by name."""
+    runs = _runs(res, "timing", "ahn_*")
+    if runs.empty:
+        return []
+    runs = runs[[("dof" not in str(s)) for s in runs["scenario"]]]
+    runs = _pick_rc_lqp(runs[runs["controller"].isin(["lqp", "rc_lqp"])])
+    if runs.empty:
+        return []
+    runs = runs.assign(_support=[_support(scenario_spec(res, s)) for s in runs["scenario"]])
+    order = {s: i for i, s in enumerate(RC_LQP_SOLVERS)}
+    out = []
+    for support in ("double", "single"):
+        here = runs[runs["_support"] == support]
+        for solver in sorted(set(here["solver"].astype(str)), key=lambda s: (order.get(s, 9), s)):
+            group = here[here["solver"] == solver]
+            conv, prop = group[group["controller"] == "lqp"], group[group["controller"] == "rc_lqp"]
+            if len(conv) and len(prop):
+                out.append((support, solver, conv.iloc[0], prop.iloc[0]))
+    return out
+
+
+def dof_runs(res: Results) -> pd.DataFrame:
+    """The DoF series' timing runs of ``lqp`` and ``rc_lqp``, one setting."""
+    runs = _runs(res, "timing", "ahn_*dof*")
+    if runs.empty:
+        return runs
+    return _pick_timing(runs[runs["controller"].isin(["lqp", "rc_lqp"])], "osqp", "lqp")
+
+
 def rc_lqp_table3(res: Results) -> PaperTable:
     t = PaperTable(
         "rc_lqp_table3",
@@ -175,11 +206,9 @@ def rc_lqp_dof(res: Results) -> PaperTable:
         "rc_lqp",
         None,
     )
-    runs = _runs(res, "timing", "ahn_*dof*")
+    runs = dof_runs(res)
     if not runs.empty:
-        runs = _pick_timing(runs[runs["controller"].isin(["lqp", "rc_lqp"])], "osqp", "lqp")
-        if not runs.empty:
-            t.notes.append(impl_note(runs))
+        t.notes.append(impl_note(runs))
     if runs.empty:
         t.missing = (
             "Run timing of `lqp` and `rc_lqp` on `ahn_dof_scaling` for each robot of the DoF "
@@ -212,7 +241,9 @@ def rc_lqp_dof(res: Results) -> PaperTable:
     t.frame = frame
     t.notes += [
         "Ratios: conventional (lqp) / proposed (rc_lqp). Ours: medians of the replayed ticks "
-        "(whole step), the paper's solver (OSQP) when timed.",
+        "(whole step); solver: {} ({}, {}), the paper's (OSQP) when it was timed.".format(
+            *runs.iloc[0][["solver", "tier", "mode"]]
+        ),
         "The paper's text gives the 20 and 45 DoF end points (Fig. 5).",
         _machines(res, "rc_lqp"),
         f"Source: {P.RC_LQP_DOF_SOURCE}.",

@@ -351,11 +351,16 @@ def to_osf_s3(res: Results) -> PaperTable:
     return t
 
 
-def to_osf_s4(res: Results) -> PaperTable:
-    t = PaperTable("to_osf_s4", "TO-OSF Scenario #4: time vs contacts and tasks", "to_osf", None)
+def s4_runs(res: Results) -> pd.DataFrame:
+    """The Scenario #4 timing runs of ``to_osf`` with its default inverse, one setting."""
     runs = _runs(res, "timing", "lee2021access_s4*", "to_osf")
     runs = runs[[_config(r) == "" for _, r in runs.iterrows()]] if not runs.empty else runs
-    runs = _pick_timing(runs, "qpoases")
+    return _pick_timing(runs, "qpoases")
+
+
+def to_osf_s4(res: Results) -> PaperTable:
+    t = PaperTable("to_osf_s4", "TO-OSF Scenario #4: time vs contacts and tasks", "to_osf", None)
+    runs = s4_runs(res)
     if not runs.empty:
         t.notes.append(impl_note(runs))
     if runs.empty:
@@ -388,6 +393,20 @@ def _stages(res: Results, run_id: Any) -> list[str]:
     return list(dict.fromkeys(stages))
 
 
+def cod_svd_runs(res: Results) -> tuple[pd.Series, pd.Series] | None:
+    """The (COD, SVD) timing runs of ``to_osf`` on one scenario, or None."""
+    runs = _pick_timing(_runs(res, "timing", "lee2021access_*", "to_osf"), "qpoases")
+    if runs.empty:
+        return None
+    svd = runs[[_has(r, "svd") for _, r in runs.iterrows()]]
+    cod = runs[[not _has(r, "svd") and not _has(r, "pinv") for _, r in runs.iterrows()]]
+    same = "scenario_hash" if "scenario_hash" in runs.columns else "scenario"
+    cod = cod[cod[same].isin(svd[same])]  # the same scenario, tasks and contacts
+    if svd.empty or cod.empty:
+        return None
+    return cod.iloc[-1], svd.iloc[-1]
+
+
 def to_osf_cod_svd(res: Results) -> PaperTable:
     t = PaperTable(
         "to_osf_cod_svd",
@@ -398,23 +417,14 @@ def to_osf_cod_svd(res: Results) -> PaperTable:
     runs = _pick_timing(_runs(res, "timing", "lee2021access_*", "to_osf"), "qpoases")
     if not runs.empty:
         t.notes.append(impl_note(runs))
-    if runs.empty:
+    pair = cod_svd_runs(res)
+    if pair is None:
         t.missing = (
             "Needs timing of `to_osf` with the default (COD) and an SVD inverse config on one "
             "`lee2021access_*` scenario."
         )
         return t
-    svd = runs[[_has(r, "svd") for _, r in runs.iterrows()]]
-    cod = runs[[not _has(r, "svd") and not _has(r, "pinv") for _, r in runs.iterrows()]]
-    same = "scenario_hash" if "scenario_hash" in runs.columns else "scenario"
-    cod = cod[cod[same].isin(svd[same])]  # the same scenario, tasks and contacts
-    if svd.empty or cod.empty:
-        t.missing = (
-            "Needs timing of `to_osf` with the default (COD) and an SVD inverse config on one "
-            "`lee2021access_*` scenario."
-        )
-        return t
-    a, b = cod.iloc[-1], svd.iloc[-1]
+    a, b = pair
     rows = []
     for stage in _stages(res, a["run_id"]):
         va = _metric(res, a["run_id"], f"t_{stage}_mean_us")
@@ -442,16 +452,19 @@ def to_osf_cod_svd(res: Results) -> PaperTable:
     return t
 
 
+def table3_runs(res: Results) -> pd.DataFrame:
+    """The Table 3 timing runs of ``hqp`` and ``to_osf`` (1…5 tasks), one setting."""
+    runs = _runs(res, "timing", "lee2021access_*t*3*")
+    if runs.empty:
+        return runs
+    return _pick_timing(runs[runs["controller"].isin(["hqp", "to_osf"])], "qpoases")
+
+
 def to_osf_table3(res: Results) -> PaperTable:
     t = PaperTable(
         "to_osf_table3", "TO-OSF Table 3: HQP vs TO-OSF time for 1…5 tasks", "to_osf", None
     )
-    runs = _runs(res, "timing", "lee2021access_*t*3*")
-    runs = (
-        _pick_timing(runs[runs["controller"].isin(["hqp", "to_osf"])], "qpoases")
-        if not runs.empty
-        else runs
-    )
+    runs = table3_runs(res)
     if not runs.empty:
         t.notes.append(impl_note(runs))
     if runs.empty:

@@ -1,6 +1,6 @@
 """A QP backend from outside wbcbench: DAQP with its proximal-point iterations always on.
 
-wbcbench's ``daqp`` backend leaves ``eps_prox = -1`` (DAQP decides at each solve whether the
+wbcbench's ``daqp`` backend leaves ``eps_prox = -1e-6`` (DAQP decides at each solve whether the
 Hessian needs proximal iterations); this one fixes ``eps_prox = 1e-6``, so that every solve
 takes the same path whatever the Hessian's rounding. The proximal-point iterations converge to
 the unregularised optimum.

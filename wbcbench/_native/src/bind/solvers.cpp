@@ -68,10 +68,18 @@ WBCBENCH_BIND(solvers, kCore, m) {
                                       "qpOASES (cmeel-qpoases), as wbcbench.qp's qpoases (CasADi).")
       .def(
           "__init__",
-          [](QpOasesSolver* self, const std::string& mode, const QpOasesOptions& options) {
-            new (self) QpOasesSolver(mode_of(mode), options);
+          [](QpOasesSolver* self, const std::string& mode, const QpOasesOptions& options,
+             const std::string& profile) {
+            new (self) QpOasesSolver(mode_of(mode), options, qpoases_profile(profile));
           },
-          nb::arg("mode"), nb::arg("options") = QpOasesOptions());
+          nb::arg("mode"), nb::arg("options") = QpOasesOptions(),
+          nb::arg("profile") = "casadi",
+          "profile: casadi (CasADi's usage), libdwbc_task / libdwbc_wrench (qpoases_libdwbc)")
+      .def_prop_ro("last_call", &QpOasesSolver::last_call,
+                   "init, hotstart, hotstart_matrices or reinit")
+      .def_prop_ro("last_nwsr", &QpOasesSolver::last_nwsr)
+      .def("settings", &QpOasesSolver::settings,
+           "the qpOASES Options a new object gets, by field name");
 
   nb::class_<EiquadprogSolver, QpSolver>(
       m, "EiquadprogSolver",

@@ -35,9 +35,13 @@ struct RobotDynamics::Impl {
   pin::Data::Matrix6x jacobian;
 };
 
+// Mirrors Robot.frame_id: a site (OP_FRAME) of that name, else a body; a joint or a body may
+// share a name with a site, so the lookup is by type.
 static pin::FrameIndex frame_index(const pin::Model& model, const std::string& name) {
-  if (!model.existFrame(name)) throw std::invalid_argument("unknown frame '" + name + "'");
-  return model.getFrameId(name);
+  for (const auto type : {pin::OP_FRAME, pin::BODY}) {
+    if (model.existFrame(name, type)) return model.getFrameId(name, type);
+  }
+  throw std::invalid_argument("unknown frame '" + name + "'");
 }
 
 RobotDynamics::RobotDynamics(const std::string& model,

@@ -6,6 +6,7 @@
 #include <cctype>
 #include <chrono>
 #include <limits>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 
@@ -69,11 +70,129 @@ void check_bounds(const std::vector<double>& lo, const std::vector<double>& hi, 
 
 }  // namespace
 
-QpOasesSolver::QpOasesSolver(SolveMode mode, const QpOasesOptions& options) : QpSolver(mode) {
-  for (const auto& [name, value] : options)
-    if (name != "CPUtime")
-      throw std::invalid_argument("qpoases (native) takes no setting '" + name +
-                                  "' (only CPUtime, which has no effect)");
+namespace {
+
+using BoolField = qpOASES::BooleanType qpOASES::Options::*;
+using IntField = qpOASES::int_t qpOASES::Options::*;
+using RealField = qpOASES::real_t qpOASES::Options::*;
+
+const std::map<std::string, BoolField>& bool_fields() {
+  static const std::map<std::string, BoolField> f = {
+      {"enableRamping", &qpOASES::Options::enableRamping},
+      {"enableFarBounds", &qpOASES::Options::enableFarBounds},
+      {"enableFlippingBounds", &qpOASES::Options::enableFlippingBounds},
+      {"enableRegularisation", &qpOASES::Options::enableRegularisation},
+      {"enableFullLITests", &qpOASES::Options::enableFullLITests},
+      {"enableNZCTests", &qpOASES::Options::enableNZCTests},
+      {"enableEqualities", &qpOASES::Options::enableEqualities},
+      {"enableInertiaCorrection", &qpOASES::Options::enableInertiaCorrection},
+  };
+  return f;
+}
+
+const std::map<std::string, IntField>& int_fields() {
+  static const std::map<std::string, IntField> f = {
+      {"enableDriftCorrection", &qpOASES::Options::enableDriftCorrection},
+      {"enableCholeskyRefactorisation", &qpOASES::Options::enableCholeskyRefactorisation},
+      {"numRegularisationSteps", &qpOASES::Options::numRegularisationSteps},
+      {"numRefinementSteps", &qpOASES::Options::numRefinementSteps},
+  };
+  return f;
+}
+
+const std::map<std::string, RealField>& real_fields() {
+  static const std::map<std::string, RealField> f = {
+      {"terminationTolerance", &qpOASES::Options::terminationTolerance},
+      {"boundTolerance", &qpOASES::Options::boundTolerance},
+      {"boundRelaxation", &qpOASES::Options::boundRelaxation},
+      {"epsNum", &qpOASES::Options::epsNum},
+      {"epsDen", &qpOASES::Options::epsDen},
+      {"maxPrimalJump", &qpOASES::Options::maxPrimalJump},
+      {"maxDualJump", &qpOASES::Options::maxDualJump},
+      {"initialRamping", &qpOASES::Options::initialRamping},
+      {"finalRamping", &qpOASES::Options::finalRamping},
+      {"initialFarBounds", &qpOASES::Options::initialFarBounds},
+      {"growFarBounds", &qpOASES::Options::growFarBounds},
+      {"epsFlipping", &qpOASES::Options::epsFlipping},
+      {"epsRegularisation", &qpOASES::Options::epsRegularisation},
+      {"epsIterRef", &qpOASES::Options::epsIterRef},
+      {"epsLITests", &qpOASES::Options::epsLITests},
+      {"epsNZCTests", &qpOASES::Options::epsNZCTests},
+      {"rcondSMin", &qpOASES::Options::rcondSMin},
+  };
+  return f;
+}
+
+// wbcbench's names of the settings outside Options: CPUtime (no effect), nWSR (the cap per
+// call), initialStatusBounds (-1 lower, 0 inactive, 1 upper)
+bool known_setting(const std::string& name) {
+  return name == "CPUtime" || name == "nWSR" || name == "initialStatusBounds" ||
+         bool_fields().count(name) || int_fields().count(name) || real_fields().count(name);
+}
+
+// libdwbc's nWSR per call: CalcSingleTaskTorqueWithQP passes 1000, CalcContactRedistribute 300
+constexpr int kLibdwbcTaskNwsr = 1000;
+constexpr int kLibdwbcWrenchNwsr = 300;
+
+}  // namespace
+
+QpOasesProfile qpoases_profile(const std::string& name) {
+  if (name == "casadi") return QpOasesProfile::kCasadi;
+  if (name == "libdwbc_task") return QpOasesProfile::kLibdwbcTask;
+  if (name == "libdwbc_wrench") return QpOasesProfile::kLibdwbcWrench;
+  throw std::invalid_argument("unknown qpOASES profile '" + name +
+                              "'; valid choices: casadi, libdwbc_task, libdwbc_wrench");
+}
+
+QpOasesSolver::QpOasesSolver(SolveMode mode, const QpOasesOptions& options,
+                             QpOasesProfile profile)
+    : QpSolver(mode), profile_(profile) {
+  for (const auto& [name, value] : options) {
+    if (!known_setting(name))
+      throw std::invalid_argument("qpoases (native) takes no setting '" + name + "'");
+    if (name != "CPUtime") overrides_[name] = value;
+  }
+}
+
+qpOASES::Options QpOasesSolver::make_options(bool reliable) const {
+  qpOASES::Options options;
+  if (profile_ == QpOasesProfile::kCasadi) {
+    options.setToDefault();
+    options.enableEqualities = qpOASES::BT_TRUE;
+  } else if (reliable) {
+    options.setToReliable();
+  } else {
+    options.setToMPC();
+  }
+  options.printLevel = qpOASES::PL_NONE;
+  for (const auto& [name, value] : overrides_) {
+    if (auto b = bool_fields().find(name); b != bool_fields().end())
+      options.*(b->second) = value != 0.0 ? qpOASES::BT_TRUE : qpOASES::BT_FALSE;
+    else if (auto i = int_fields().find(name); i != int_fields().end())
+      options.*(i->second) = static_cast<qpOASES::int_t>(value);
+    else if (auto r = real_fields().find(name); r != real_fields().end())
+      options.*(r->second) = value;
+    else if (name == "initialStatusBounds")
+      options.initialStatusBounds = value < 0   ? qpOASES::ST_LOWER
+                                    : value > 0 ? qpOASES::ST_UPPER
+                                                : qpOASES::ST_INACTIVE;
+  }
+  return options;
+}
+
+void QpOasesSolver::set_options(bool reliable) { problem_->setOptions(make_options(reliable)); }
+
+QpOasesOptions QpOasesSolver::settings() const {
+  const qpOASES::Options o = make_options(profile_ == QpOasesProfile::kLibdwbcWrench);
+  QpOasesOptions out;
+  for (const auto& [name, field] : bool_fields()) out[name] = o.*field == qpOASES::BT_TRUE;
+  for (const auto& [name, field] : int_fields()) out[name] = static_cast<double>(o.*field);
+  for (const auto& [name, field] : real_fields()) out[name] = o.*field;
+  out["initialStatusBounds"] = o.initialStatusBounds == qpOASES::ST_LOWER   ? -1.0
+                               : o.initialStatusBounds == qpOASES::ST_UPPER ? 1.0
+                                                                            : 0.0;
+  out["printLevel"] = static_cast<double>(o.printLevel);
+  return out;
 }
 
 QpOasesSolver::~QpOasesSolver() { drop_native(); }
@@ -91,18 +210,14 @@ void QpOasesSolver::build(const QpBuffers& qp) {
   n_eq_ = static_cast<int>(qp.A.rows());
   n_in_ = static_cast<int>(qp.C.rows());
   const int na = n_eq_ + n_in_;
-  if (na == 0) {
+  if (na == 0 && !libdwbc()) {
     problem_ = std::make_unique<qpOASES::QProblemB>(n_, qpOASES::HST_UNKNOWN);
   } else {
     auto sq = std::make_unique<qpOASES::SQProblem>(n_, na, qpOASES::HST_UNKNOWN);
     sq_ = sq.get();
     problem_ = std::move(sq);
   }
-  qpOASES::Options options;
-  options.setToDefault();
-  options.printLevel = qpOASES::PL_NONE;
-  options.enableEqualities = qpOASES::BT_TRUE;
-  problem_->setOptions(options);
+  set_options(profile_ == QpOasesProfile::kLibdwbcWrench);
   // (the buffers qpOASES points into are resized only here, with no object holding them)
   h_.resize(static_cast<size_t>(n_) * n_);
   a_.resize(static_cast<size_t>(na) * n_);
@@ -144,40 +259,72 @@ void QpOasesSolver::solve_fresh(const QpBuffers& qp, const Guess* /*guess*/, boo
   const auto t0 = Clock::now();
   build(qp);
   load(qp);
-  call(qp, seconds_since(t0));
+  call(qp, seconds_since(t0), kAllFields);
   if (!keep) drop_native();
 }
 
-void QpOasesSolver::solve_update(const QpBuffers& qp, unsigned /*changed*/) {
-  // CasADi sends every field on every call (a matrix hotstart)
+void QpOasesSolver::solve_update(const QpBuffers& qp, unsigned changed) {
+  // CasADi sends every field on every call (a matrix hotstart); libdwbc's matrices go again
+  // only when they changed
   const auto t0 = Clock::now();
   load(qp);
-  call(qp, seconds_since(t0));
+  call(qp, seconds_since(t0), libdwbc() ? changed : kAllFields);
 }
 
-// QpoasesInterface::solve, dense branch
-void QpOasesSolver::call(const QpBuffers& qp, double setup_seconds) {
+// QpoasesInterface::solve, dense branch (libdwbc: CQuadraticProgram::SolveQPoases)
+void QpOasesSolver::call(const QpBuffers& qp, double setup_seconds, unsigned changed) {
   const int na = n_eq_ + n_in_;
-  qpOASES::int_t nwsr = 5 * (n_ + na);
+  int cap = 5 * (n_ + na);
+  if (profile_ == QpOasesProfile::kLibdwbcTask) cap = kLibdwbcTaskNwsr;
+  if (profile_ == QpOasesProfile::kLibdwbcWrench) cap = kLibdwbcWrenchNwsr;
+  if (auto it = overrides_.find("nWSR"); it != overrides_.end()) cap = static_cast<int>(it->second);
+  qpOASES::int_t nwsr = cap;
+  // libdwbc passes no box bounds to a QP that has none
+  const double* lbx = libdwbc() && !qp.has_box ? nullptr : lbx_.data();
+  const double* ubx = libdwbc() && !qp.has_box ? nullptr : ubx_.data();
   // ~QProblemB() resets qpOASES' global message handler to print errors; hide them again
   problem_->setPrintLevel(qpOASES::PL_NONE);
   qpOASES::returnValue flag;
   const auto t0 = Clock::now();
   if (sq_ == nullptr) {
     if (called_once_) problem_->reset();  // CasADi never hotstarts a QProblemB
-    flag = problem_->init(h_.data(), g_.data(), lbx_.data(), ubx_.data(), nwsr, nullptr);
-  } else if (called_once_) {
-    flag = sq_->hotstart(h_.data(), g_.data(), a_.data(), lbx_.data(), ubx_.data(), lba_.data(),
-                         uba_.data(), nwsr, nullptr);
+    flag = problem_->init(h_.data(), g_.data(), lbx, ubx, nwsr, nullptr);
+    last_call_ = "init";
+  } else if (!called_once_) {
+    flag = sq_->init(h_.data(), g_.data(), a_.data(), lbx, ubx, lba_.data(), uba_.data(), nwsr,
+                     nullptr);
+    last_call_ = "init";
+  } else if (changed & (kFieldH | kFieldA | kFieldC)) {
+    flag = sq_->hotstart(h_.data(), g_.data(), a_.data(), lbx, ubx, lba_.data(), uba_.data(),
+                         nwsr, nullptr);
+    last_call_ = "hotstart_matrices";
   } else {
-    flag = sq_->init(h_.data(), g_.data(), a_.data(), lbx_.data(), ubx_.data(), lba_.data(),
-                     uba_.data(), nwsr, nullptr);
+    // the same matrices: qpOASES keeps its factorisations and moves along the homotopy in the
+    // vectors only
+    flag = sq_->qpOASES::QProblem::hotstart(g_.data(), lbx, ubx, lba_.data(), uba_.data(), nwsr,
+                                             nullptr);
+    last_call_ = "hotstart";
+  }
+  last_nwsr_ = static_cast<int>(nwsr);
+  if (libdwbc() && flag != qpOASES::SUCCESSFUL_RETURN && sq_ != nullptr) {
+    // libdwbc: a fresh SQProblem, setToReliable(), ten times the cap, initialised from scratch
+    auto sq = std::make_unique<qpOASES::SQProblem>(n_, na, qpOASES::HST_UNKNOWN);
+    sq_ = sq.get();
+    problem_ = std::move(sq);
+    set_options(true);
+    problem_->setPrintLevel(qpOASES::PL_NONE);
+    nwsr = 10 * cap;
+    flag = sq_->init(h_.data(), g_.data(), a_.data(), lbx, ubx, lba_.data(), uba_.data(), nwsr,
+                     nullptr);
+    last_nwsr_ += static_cast<int>(nwsr);
+    last_call_ = "reinit";
+    outcome_.rebuilt = true;
   }
   outcome_.wall = seconds_since(t0);
   called_once_ = true;  // also after a failed call
   outcome_.setup = setup_seconds;
   outcome_.internal = outcome_.wall;  // CasADi's t_wall_solver: the same call
-  outcome_.iterations = static_cast<int>(nwsr);
+  outcome_.iterations = last_nwsr_;
   outcome_.message = casadi_message(flag);
   outcome_.status = status_of(flag, outcome_.message);
   if (outcome_.status != QpStatus::kSolved && outcome_.status != QpStatus::kMaxIter) return;

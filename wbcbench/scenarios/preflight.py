@@ -1,0 +1,196 @@
+"""Checks of a scenario's contacts on its robot before the first step, which ``validate`` prints.
+
+- :func:`floor_collisions`: the geometry simulated at each contact can collide with the world
+  (a floor plane, or a wall for a hand contact; MuJoCo's rule: ``contype`` of one geom and
+  ``conaffinity`` of the other share a bit).
+- :func:`sole_placements`: each contact that faces the floor (its z axis within
+  :data:`FLOOR_FACING` of the floor's normal; a hand on a wall does not) has its sole in the
+  floor plane at the initial posture:
+  the contact frame's z axis within :data:`SOLE_TILT_TOLERANCE` of the floor's normal, and the
+  sole (the frame itself for a sole box or a foot without geometry, else the foot's lowest
+  geometry) within :data:`SOLE_HEIGHT_TOLERANCE` of the floor.
+- :func:`contact_rank`: the stacked 6-D contact Jacobian has full row rank at the initial
+  posture, else the controllers' contact constraint is singular.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+#: largest angle [rad] between a contact frame's z axis and the floor's normal (1°: a 0.1 m
+#: half-sole then lifts its edge 1.7 mm off the floor)
+SOLE_TILT_TOLERANCE = np.deg2rad(1.0)
+#: largest gap [m] between a sole and the floor, above or below
+SOLE_HEIGHT_TOLERANCE = 0.002
+#: a singular value of the contact Jacobian below this fraction of the largest counts as zero
+RANK_TOLERANCE = 1e-8
+#: a contact whose z axis is further than this [rad] from the floor's normal is not on the floor
+FLOOR_FACING = np.deg2rad(45.0)
+
+
+def _floors(m: mujoco.MjModel) -> list[int]:
+    return [
+        g
+        for g in range(m.ngeom)
+        if m.geom_bodyid[g] == 0 and m.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE
+    ]
+
+
+def _collide(m: mujoco.MjModel, g1: int, g2: int) -> bool:
+    return bool(
+        (m.geom_contype[g1] & m.geom_conaffinity[g2])
+        or (m.geom_contype[g2] & m.geom_conaffinity[g1])
+    )
+
+
+def _name(m: mujoco.MjModel, g: int) -> str:
+    """A geom's name, or its body's and its type for an unnamed one ("l_foot's box")."""
+    name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g)
+    if name:
+        return name
+    body = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[g]))
+    return f"{body}'s {mujoco.mjtGeom(m.geom_type[g]).name[7:].lower()}"
+
+
+def floor_collisions(m: mujoco.MjModel, frames: list[str]) -> list[tuple[int, str]]:
+    """(contact index, sentence) for each contact frame none of whose feet's geoms (the geoms of
+    the bodies welded to it in the simulated model ``m``) can collide with the world's (a
+    floor plane, a wall)."""
+    from wbcbench.robots.loader import frame_body, welded_bodies
+
+    world = {b for b in range(m.nbody) if m.body_weldid[b] == 0}  # bodies welded to the world
+    floors = [g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in world]
+    out = []
+    for i, frame in enumerate(frames):
+        body = frame_body(m, frame)
+        if body <= 0:
+            continue
+        bodies = welded_bodies(m, body)
+        feet = [g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in bodies]
+        if any(_collide(m, f, g) for f in floors for g in feet):
+            continue
+        where = f"contacts[{i}] ({frame!r})"
+        if not floors:
+            why = "the world has no geometry"
+        elif not feet:
+            why = "the bodies welded to it have no geometry"
+        else:
+            listed = ", ".join(
+                f"{_name(m, g)} {m.geom_contype[g]}/{m.geom_conaffinity[g]}" for g in feet[:4]
+            )
+            floor = ", ".join(
+                f"{_name(m, f)} {m.geom_contype[f]}/{m.geom_conaffinity[f]}" for f in floors
+            )
+            why = (
+                f"its geoms (contype/conaffinity: {listed}) share no bit with the floor's ({floor})"
+            )
+        out.append(
+            (
+                i,
+                f"{where}: the foot cannot touch the floor or a wall: {why}; the robot falls "
+                "through it. "
+                "Set contype and conaffinity of the foot's geoms (MuJoCo's rule: one's contype "
+                "and the other's conaffinity share a bit), or simulate the foot as its sole box "
+                "('contact_geometry: box')",
+            )
+        )
+    return out
+
+
+def sole_placements(
+    robot: Any, q: np.ndarray, contacts: Sequence[tuple[str, str]]
+) -> list[tuple[int, str]]:
+    """(contact index, sentence) for each contact facing the floor whose sole is not in the
+    floor plane at configuration q (nq,): tilted by more than :data:`SOLE_TILT_TOLERANCE`, or
+    more than :data:`SOLE_HEIGHT_TOLERANCE` above or below the floor. ``contacts``: (frame,
+    contact_geometry) pairs. Nothing when the world has no floor plane."""
+    from wbcbench.robots.loader import frame_in_body, welded_bodies
+
+    m = robot.mj_model
+    floors = _floors(m)
+    if not floors:
+        return []
+    d = mujoco.MjData(m)
+    d.qpos[:], _ = robot.pin_to_mj(q)
+    mujoco.mj_forward(m, d)
+    floor = floors[0]
+    normal = d.geom_xmat[floor].reshape(3, 3)[:, 2]
+    origin = d.geom_xpos[floor]
+    out = []
+    for i, (frame, geometry) in enumerate(contacts):
+        body, p_b, R_b = frame_in_body(m, frame)
+        if body <= 0:
+            continue
+        R = d.xmat[body].reshape(3, 3) @ R_b
+        position = d.xpos[body] + d.xmat[body].reshape(3, 3) @ p_b
+        tilt = float(np.arccos(np.clip(R[:, 2] @ normal, -1.0, 1.0)))
+        if tilt > FLOOR_FACING:
+            continue
+        feet = [
+            g
+            for g in range(m.ngeom)
+            if int(m.geom_bodyid[g]) in welded_bodies(m, body) and _collide(m, g, floor)
+        ]
+        if geometry == "box" or not feet:
+            height, what = float((position - origin) @ normal), "the contact frame"
+        else:
+            height = min(mujoco.mj_geomDistance(m, d, floor, g, 1.0, None) for g in feet)
+            what = "the foot's geometry"
+        problems = []
+        if tilt > SOLE_TILT_TOLERANCE:
+            problems.append(f"its sole plane is tilted {np.rad2deg(tilt):.1f}° from the floor")
+        if abs(height) > SOLE_HEIGHT_TOLERANCE:
+            side = "above" if height > 0 else "below"
+            problems.append(f"{what} is {1e3 * abs(height):.1f} mm {side} the floor")
+        if problems:
+            out.append(
+                (
+                    i,
+                    f"contacts[{i}] ({frame!r}) at the initial posture: {' and '.join(problems)} "
+                    f"(tolerances {np.rad2deg(SOLE_TILT_TOLERANCE):.0f}° and "
+                    f"{1e3 * SOLE_HEIGHT_TOLERANCE:.0f} mm): the controllers hold the sole flat "
+                    "where it is, so the foot rocks or drops at the first step; fix the "
+                    "keyframe or 'initial.joints', or give the contact a frame in the sole plane "
+                    "('frames:')",
+                )
+            )
+    return out
+
+
+def contact_rank(robot: Any, q: np.ndarray, frames: list[str]) -> str:
+    """Why the contacts' stacked 6-D Jacobian (6c, nv) is rank-deficient at configuration q
+    (nq,), naming the contact wrench components it cannot produce; "" at full row rank."""
+    if not frames:
+        return ""
+    model = robot.pin_model
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.updateFramePlacements(model, data)
+    jac = np.vstack(
+        [
+            pin.getFrameJacobian(model, data, robot.frame_id(f), pin.ReferenceFrame.LOCAL)
+            for f in frames
+        ]
+    )
+    u, s, _ = np.linalg.svd(jac)
+    rank = int((s > RANK_TOLERANCE * s[0]).sum())
+    if rank == jac.shape[0]:
+        return ""
+    # the wrench directions no joint motion reaches: the left null space
+    axes = ("force x", "force y", "force z", "moment x", "moment y", "moment z")
+    directions = []
+    for column in u[:, rank:].T:
+        big = np.flatnonzero(np.abs(column) > 0.3 * np.abs(column).max())
+        directions.append(" with ".join(f"{frames[r // 6]}'s {axes[r % 6]}" for r in big))
+    return (
+        f"the contact Jacobian has rank {rank} of {jac.shape[0]} at the initial posture: no "
+        f"joint motion moves {'; nor '.join(directions)} independently (a leg with fewer than "
+        "6 joints, or aligned joint axes), so the 6-D contacts' constraint is singular and the "
+        "controllers' contact-force problem has no unique solution; give such a foot point or "
+        "line contacts (forces only, at the sole's corners or along its edge)"
+    )
