@@ -52,7 +52,8 @@ def test_unknown_key(tmp_path: Path) -> None:
     assert error_of(path) == (
         f"{path}: durration: unknown key 'durration'; valid keys: contacts, control_rate, "
         "controllers, description, duration, environment, frames, initial, kind, limits, metrics, "
-        "name, package_dirs, perturbations, reconstruction, reproduces, robot, sim, tasks, version"
+        "name, package_dirs, perturbations, reconstruction, reproduces, robot, sim, tasks, "
+        "version, walk"
     )
 
 

@@ -26,7 +26,12 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Literal
 
-from wbcbench.controllers.base import Controller, ControllerConfig, ControllerContext
+from wbcbench.controllers.base import (
+    Controller,
+    ControllerConfig,
+    ControllerContext,
+    native_schedule_refusal,
+)
 from wbcbench.controllers.registry import (
     check_scenario_settings,
     controller_class,
@@ -37,6 +42,7 @@ from wbcbench.qp.registry import DEFAULT_SOLVER, default_solver, solver_class
 from wbcbench.qp.settings import check_mode, check_tier
 from wbcbench.robots.loader import Robot
 from wbcbench.robots.model_error import with_model_error
+from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import (
     LoadedScenario,
     build_contacts,
@@ -46,6 +52,7 @@ from wbcbench.scenarios.load import (
     load_scenario_robot,
     torque_limits,
 )
+from wbcbench.scenarios.walk import expand
 from wbcbench.tasks.collision import Box
 
 __all__ = [
@@ -181,14 +188,23 @@ def scenario_context(
     **options: Any,
 ) -> ControllerContext:
     """A controller context with the scenario's tasks, contacts, torque limits and period;
-    ``options`` are further fields of ``context_cls`` (``solver``, ``tier``, ...)."""
+    ``options`` are further fields of ``context_cls`` (``solver``, ``tier``, ...). A scenario
+    whose contacts change gets its schedule, and a walk its swing tasks and references
+    (:func:`wbcbench.scenarios.walk.expand`, planned from the scenario's initial state)."""
     spec = loaded.spec
+    tasks = build_tasks(spec, robot)
+    schedule = None
+    if spec.has_schedule:
+        q0, _ = initial_state(loaded, robot)
+        expansion = expand(spec, robot, tasks, q0)
+        tasks, schedule = expansion.tasks, expansion.schedule
     return context_cls(
         robot=robot,
-        tasks=build_tasks(spec, robot),
+        tasks=tasks,
         contacts=build_contacts(spec, robot),
         tau_max=torque_limits(spec, robot),
         dt=spec.dt,
+        schedule=schedule,
         **options,
     )
 
@@ -262,6 +278,8 @@ class Planner:
             solver_class(solver)
         variant = dict(config or {})
         validated = validated_config(cls, loaded, variant, *where)
+        if loaded.spec.has_schedule and cls.impl_for(validated) == "native":
+            raise WbcBenchError(f"{loaded.path}: {native_schedule_refusal(controller)}")
         settings = RunSettings(controller, solver, tier, mode, variant)
         velocity = cls.kind == "velocity" or loaded.spec.kind == "kinematic"
         runner: Runner = "timing" if timing else "kinematic" if velocity else "closed_loop"

@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -73,10 +74,12 @@ def run_metrics(
             series = cols[f"{source}.{task}.{part}"]
             unit = ERROR_UNITS[part]
             w = series[mask]
+            w = w[np.isfinite(w)]  # a swing task is not evaluated while its foot stands
+            finite = series[np.isfinite(series)]
             for stat, value in (
                 ("mean", float(np.mean(w)) if w.size else np.nan),
                 ("max", float(np.max(w)) if w.size else np.nan),
-                ("final", float(series[-1])),
+                ("final", float(finite[-1]) if finite.size else np.nan),
             ):
                 rows.append(MetricRow(task, _metric_name(part, stat, parts), value, unit))
 
@@ -94,7 +97,11 @@ def run_metrics(
             for contact in contacts:
                 w6 = np.column_stack([cols[f"wrench_{source}.{contact.frame}.{c}"] for c in WRENCH])
                 loaded = loaded_normal_force(contact)
-                for wrench in w6[mask]:
+                # a scheduled contact counts only while active and settled (not swinging,
+                # unloading before lift-off or loading after touchdown)
+                held = cols.get(f"active.{contact.frame}")
+                held_mask = mask if held is None else mask & (held >= 1.0)
+                for wrench in w6[held_mask]:
                     if not np.all(np.isfinite(wrench)):
                         continue
                     measured = contact.violation(wrench)
@@ -119,6 +126,8 @@ def run_metrics(
             MetricRow("*", "min_collision_distance", float(np.min(cols["collision_distance"])), "m")
         )
     rows.append(MetricRow("*", "solve_failures", float(result.failures), "ticks"))
+    if result.walk is not None:
+        rows += walk_metrics(result.walk, cols, warmup)
     # task-reference amendments ‖ẍ_opt − ẍ*‖ of the optimising OSF controllers (to_osf), and
     # the velocity residual ‖J q̇ − r‖ of each level of the velocity-level controllers
     for key in cols:
@@ -151,4 +160,44 @@ def run_metrics(
             level = key.removeprefix("time.solve.")
             stats = timing_stats(cols[key][warmup:])
             rows.append(MetricRow(level, "t_solve_median_us", stats["median_us"], "us"))
+    return rows
+
+
+def walk_phases(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Masks of the ticks of a run with a contact schedule by phase: ``double`` (two or more
+    contacts active), ``single`` (one), and ``transition`` (the active set differs from the
+    previous tick's: where a warm start is lost), the last taken out of the other two."""
+    active = np.column_stack([v > 0 for k, v in cols.items() if k.startswith("active.")])
+    count = active.sum(axis=1)
+    changed = np.zeros(len(count), dtype=bool)
+    changed[1:] = np.any(active[1:] != active[:-1], axis=1)
+    return {
+        "double": (count >= 2) & ~changed,
+        "single": (count == 1) & ~changed,
+        "transition": changed,
+    }
+
+
+def walk_metrics(
+    walk: dict[str, Any], cols: dict[str, np.ndarray], warmup: int = 0
+) -> list[MetricRow]:
+    """Steps the run completed (touchdowns confirmed of those planned), the landing error
+    (distance of each landed foot's frame to its footstep) [m], and the tick's total time per
+    phase (:func:`walk_phases`): ``t_total_<stat>_<phase>`` [µs]."""
+    planned = sum(1 for f in walk["footsteps"] if f["touch_down"] is not None)
+    errors = [landing["error"] for landing in walk.get("landings", [])]
+    rows = [
+        MetricRow("*", "steps_completed", float(len(errors)), "steps"),
+        MetricRow("*", "steps_planned", float(planned), "steps"),
+    ]
+    if errors:
+        rows.append(MetricRow("*", "landing_error_mean", float(np.mean(errors)), "m"))
+        rows.append(MetricRow("*", "landing_error_max", float(np.max(errors)), "m"))
+    if "time.total" in cols and any(k.startswith("active.") for k in cols):
+        after = np.arange(len(cols["t"])) >= warmup
+        for phase, where in walk_phases(cols).items():
+            stats = timing_stats(cols["time.total"][where & after])
+            for name in ("median_us", "p99_us"):
+                rows.append(MetricRow("*", f"t_total_{name}_{phase}", stats[name], "us"))
+            rows.append(MetricRow("*", f"ticks_{phase}", float(np.sum(where & after)), "ticks"))
     return rows

@@ -501,13 +501,18 @@ def _config_variants(
     return variants
 
 
-def _impl_configs(impls: Sequence[str], controller: str) -> list[dict[str, str]]:
-    """The ``impl`` overrides of a controller for a matrix's ``impls`` (each once)."""
+def _impl_configs(
+    impls: Sequence[str], controller: str, scheduled: bool = False
+) -> list[dict[str, str]]:
+    """The ``impl`` overrides of a controller for a matrix's ``impls`` (each once); on a
+    scenario whose contacts change (``scheduled``) without native, which holds a fixed set."""
     from wbcbench.controllers.registry import controller_class
 
     has_native = controller_class(controller).has_native
     out: list[dict[str, str]] = []
     for impl in impls:
+        if scheduled and impl == "native":
+            continue
         config = {"impl": impl} if impl != "default" and has_native else {}
         if config not in out:
             out.append(config)
@@ -677,10 +682,16 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                         if explicit:
                             not_applicable.append(f"{loaded.name} · {controller}: {reason}")
                         continue
+                    scheduled = loaded.spec.has_schedule
+                    if scheduled and "native" in matrix.impls:
+                        not_applicable.append(
+                            f"{loaded.name} · {controller} impl native: the native tick holds a "
+                            "fixed contact set"
+                        )
                     for config in [
                         {**variant, **impl}
                         for variant in _config_variants(matrix, controller, loaded, file, key)
-                        for impl in _impl_configs(matrix.impls, controller)
+                        for impl in _impl_configs(matrix.impls, controller, scheduled)
                     ]:
                         for solver, tier, mode in runs_of[controller]:
                             run = planner.run(

@@ -27,7 +27,8 @@ from wbcbench.qp.registry import DEFAULT_SOLVER
 from wbcbench.qp.solution import SolveTimes
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.schema import Scenario
-from wbcbench.tasks.contacts import PlaneContact
+from wbcbench.tasks.contacts import PlaneContact, stack_wrench_constraints
+from wbcbench.tasks.schedule import ContactPhase, ContactSchedule
 from wbcbench.tasks.tasks import Task, TaskTerm
 
 
@@ -92,6 +93,16 @@ def resolve_impl(cls: type[Controller], requested: str | None) -> str:
     return default_impl() or ("native" if _native.BUILT else "python")
 
 
+def native_schedule_refusal(controller: str) -> str:
+    """Why ``controller``'s native tick does not run a scenario whose contacts change."""
+    return (
+        f"{controller}: the native tick holds a fixed contact set and this scenario's contacts "
+        "change (a contact schedule or a walk); run the Python reference: impl python "
+        f"(--set controllers.{controller}.impl=python, or controllers: {{{controller}: "
+        "{impl: python}} in the scenario)"
+    )
+
+
 @dataclass
 class ControllerContext:
     """Everything a controller may use besides its own settings.
@@ -104,6 +115,8 @@ class ControllerContext:
         solver, tier, mode: the QP backend and its accuracy tier and mode.
         dt: control period [s].
         keep_problems: keep every QP of the last step in ``ControlOutput.problems`` (for dumps).
+        schedule: when the contacts change over the run, which are active at each tick (None:
+            every contact is held throughout).
     """
 
     robot: Robot
@@ -115,6 +128,7 @@ class ControllerContext:
     mode: str = "cold"
     dt: float = 1e-3
     keep_problems: bool = False
+    schedule: ContactSchedule | None = None
 
     @property
     def contact_frames(self) -> list[str]:
@@ -237,6 +251,11 @@ class Controller(ABC):
         self.impl = self.impl_for(self.config)
         if self.impl == "native":
             _native.core()  # fails here, with why, where the module is not built
+            if ctx.schedule is not None:
+                raise ControllerError(native_schedule_refusal(self.name))
+        # with a schedule, the first tick selects (and rebuilds what depends on the set)
+        self.active_contacts = (-1,) if ctx.schedule else tuple(range(len(ctx.contacts)))
+        self.active_tasks = list(ctx.tasks)
 
     def start(self, state: RobotState) -> None:
         """Called once with the initial state: fixes the tasks' initial values."""
@@ -247,8 +266,72 @@ class Controller(ABC):
     def step(self, state: RobotState, t: float) -> ControlOutput:
         """Compute the torque for this tick."""
 
+    # -- a contact set that changes (ctx.schedule)
+
+    #: the active contacts' frames, stacked wrench inequalities ``lw ≤ Cw f ≤ uw`` and wrench
+    #: size 6c: the whole context's unless a schedule selects (:meth:`select_contacts`)
+    frames: list[str]
+    Cw: np.ndarray
+    lw: np.ndarray
+    uw: np.ndarray
+    nc: int
+    #: the active contacts' indices into ``ctx.contacts`` (all of them without a schedule)
+    active_contacts: tuple[int, ...] = ()
+    #: the tasks of the tick: the context's, but for those that drive the frame of a scheduled
+    #: contact while it is active (a swing task leaves the QPs while its foot stands)
+    active_tasks: list[Task]
+
+    def select_contacts(self, t: float) -> ContactPhase | None:
+        """Make the contacts active at ``t`` the ones this tick holds (with a schedule).
+
+        Sets ``frames``, ``Cw``, ``lw``, ``uw`` and ``nc`` to the active subset (its wrench
+        rows built once per subset and kept), scales the normal-force bounds of a contact that
+        is unloading or just landed (:class:`~wbcbench.tasks.schedule.ContactSchedule`), and
+        calls :meth:`contacts_changed` when the subset differs from the last tick's.
+        """
+        schedule = self.ctx.schedule
+        if schedule is None:
+            return None
+        phase = schedule.phase(t)
+        cache: dict[tuple[int, ...], Any] = self.__dict__.setdefault("_contact_sets", {})
+        entry = cache.get(phase.active)
+        if entry is None:
+            contacts = [self.ctx.contacts[i] for i in phase.active]
+            Cw, lw, uw = stack_wrench_constraints(contacts)
+            rows = np.cumsum([0] + [c.n_constraints for c in contacts])[:-1].tolist()
+            fmax = [c.fmax for c in contacts]
+            entry = cache[phase.active] = (contacts, Cw, lw, uw, rows, fmax)
+        contacts, Cw, lw, uw, rows, fmax = entry
+        changed = phase.active != self.active_contacts
+        self.frames = [c.frame for c in contacts]
+        if changed:
+            held = set(self.frames)
+            self.active_tasks = [
+                task for task in self.ctx.tasks if getattr(task, "frame", None) not in held
+            ]
+        self.Cw, self.nc = Cw, 6 * len(contacts)
+        self.lw, self.uw = np.empty_like(lw), np.empty_like(uw)
+        schedule.scale_bounds(phase, rows, fmax, lw, uw, self.lw, self.uw)
+        self.active_contacts = phase.active
+        if changed:
+            self.contacts_changed()
+        return phase
+
+    def contacts_changed(self) -> None:  # noqa: B027 - a hook: most controllers need nothing
+        """Rebuild what depends on the contact set, after :meth:`select_contacts` changed it."""
+
+    def full_wrench(self, wrench: np.ndarray) -> np.ndarray:
+        """The active contacts' stacked wrench (6c,) spread over every contact of the context
+        (zeros for the inactive ones), as the runners log it."""
+        if self.ctx.schedule is None:
+            return wrench
+        out = np.zeros(6 * len(self.ctx.contacts))
+        for j, i in enumerate(self.active_contacts):
+            out[6 * i : 6 * i + 6] = wrench[6 * j : 6 * j + 6]
+        return out
+
     def evaluate_tasks(self, state: RobotState, t: float) -> list[TaskTerm]:
-        return [task.evaluate(state, t) for task in self.ctx.tasks]
+        return [task.evaluate(state, t) for task in self.active_tasks]
 
     def close(self) -> None:  # noqa: B027 - an optional hook: most controllers hold nothing
         """Release what the controller holds beyond memory (worker processes, shared memory).

@@ -212,9 +212,10 @@ class Hqp(NativeController):
         weights = self.config.level_weights
         levels = []
         for i, p in enumerate(self.priorities):
-            rows, rhs = zip(
-                *(self._task_rows(t, state) for t in terms if t.task.priority == p), strict=True
-            )
+            group = [self._task_rows(t, state) for t in terms if t.task.priority == p]
+            if not group:  # its only tasks drive feet that stand (a contact schedule)
+                continue
+            rows, rhs = zip(*group, strict=True)
             w = weights[min(i, len(weights) - 1)]
             levels.append(PriorityLevel(f"L{p}", np.vstack(rows), np.concatenate(rhs), weight=w))
         return levels
@@ -250,6 +251,7 @@ class Hqp(NativeController):
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
             return self.native_step(state, t)
+        self.select_contacts(t)
         timer = StageTimer(state)
         n, k = state.n, state.k
         terms = self.evaluate_tasks(state, t)

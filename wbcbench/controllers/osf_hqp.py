@@ -65,10 +65,17 @@ class OsfHqp(OsfControllerBase):
         super().__init__(ctx, config)
         self.solvers = [ctx.new_solver() for _ in self.levels]
         self.final_solver = ctx.new_solver("wrench")
-        Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
-        self.WtW = Wc.T @ Wc
+        self.wrench_weighting()
         #: how many of the native tick's QPs the last tick reached
         self.reached = 0
+
+    def wrench_weighting(self) -> None:
+        # a level per solver handle, also when a contact set's tasks form more levels
+        solvers = getattr(self, "solvers", None)
+        while solvers is not None and len(solvers) < len(self.levels):
+            solvers.append(self.ctx.new_solver())
+        Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
+        self.WtW = Wc.T @ Wc
 
     def native_settings(self, s: Any) -> None:
         s.regularization = self.config.regularization
@@ -124,6 +131,7 @@ class OsfHqp(OsfControllerBase):
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
             return self.native_step(state, t)
+        self.select_contacts(t)
         timer = StageTimer(state)
         cfg = self.config
         terms, per_level, refs, read = self.prepare(state, t)

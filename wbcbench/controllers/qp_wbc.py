@@ -116,6 +116,7 @@ class QpWbc(NativeController):
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
             return self.native_step(state, t)
+        self.select_contacts(t)
         timer = StageTimer(state)
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc

@@ -346,6 +346,29 @@ class RcLqp(NativeController):
         self._act_plain = self.split.plain[6:] - 6
         self._act_uc = self.split.unconstrained - 6
 
+    # -- a contact set that changes ------------------------------------------------------------
+
+    def select_contacts(self, t: float) -> Any:
+        """The active contacts, also for the full-model LQP this controller falls back on."""
+        self.full.select_contacts(t)
+        return super().select_contacts(t)
+
+    def contacts_changed(self) -> None:
+        """The chains follow the stance: the split and the reduced model of the new contact set
+        (built once per set and kept), and the row split decided again at this tick's state."""
+        models = self.__dict__.setdefault("_stance_models", {})
+        entry = models.get(self.active_contacts)
+        if entry is None:
+            split = split_chains(self.ctx.robot.pin_model, self.frames)
+            entry = models[self.active_contacts] = (
+                split,
+                ReducedDynamics(self.ctx.robot.pin_model, split),
+            )
+        self.split, self.reduced = entry
+        self._act_plain = self.split.plain[6:] - 6
+        self._act_uc = self.split.unconstrained - 6
+        self._rows = None
+
     # -- the native tick ------------------------------------------------------------------------
 
     def on_start(self, state: RobotState) -> None:
@@ -470,11 +493,11 @@ class RcLqp(NativeController):
                 {t.task.name: red.reducible_rows(t.J) for t in self.evaluate_tasks(s, 0.0)}
             )
         lqp1, lqp2 = {}, {}
-        for task in self.ctx.tasks:
+        for task in self.active_tasks:
             mask = masks[0][task.name] & masks[1][task.name]
             lqp1[task.name] = np.flatnonzero(mask)
             lqp2[task.name] = np.flatnonzero(~mask)
-        chain = [t.priority for t in self.ctx.tasks if lqp2[t.name].size]
+        chain = [t.priority for t in self.active_tasks if lqp2[t.name].size]
         return _RowSplit(lqp1, lqp2, min(chain, default=0))
 
     # -- LQP 1 ----------------------------------------------------------------------------------
@@ -868,6 +891,7 @@ class RcLqp(NativeController):
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
             return self.native_step(state, t)
+        self.select_contacts(t)
         timer = StageTimer(state)
         cfg = self.config
         n, k, nc = state.n, state.k, self.nc

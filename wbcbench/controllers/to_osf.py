@@ -115,6 +115,11 @@ class OsfControllerBase(NativeController):
             rcond=cfg.rcond,
             affine=self.affine,
         )
+        if ctx.schedule is not None and parse_params_mode(cfg.params).kind == "async":
+            raise ControllerError(
+                f"{self.name}: params async does not follow a contact schedule (its worker "
+                "computes the parameters of one contact set); use params inline or periodic:N"
+            )
         self.server = ParameterServer(self.model, cfg.params, ctx.robot)
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
         self.nc = 6 * len(self.frames)
@@ -125,13 +130,41 @@ class OsfControllerBase(NativeController):
                 f"{self.name}: acc_limits names unknown task(s) {', '.join(unknown)}; "
                 f"valid choices: {', '.join(sorted(names))}"
             )
-        self.acc_bound = [
-            np.concatenate([np.full(t.dim, cfg.acc_limits.get(t.name, np.inf)) for t in tasks])
-            for tasks in self.levels
-        ]
         self.tick = 0
+        self.group_tasks(ctx.tasks)
+
+    def group_tasks(self, tasks: list[Task]) -> None:
+        """The levels of ``tasks``, their kinds, acceleration bounds and level order."""
+        self.levels = group_levels(tasks)
+        self.kinds = level_kinds(self.levels)
+        limits = self.config.acc_limits
+        self.acc_bound = [
+            np.concatenate([np.full(t.dim, limits.get(t.name, np.inf)) for t in level])
+            for level in self.levels
+        ]
         #: the tasks in level order (the native tick stacks them so)
         self.level_tasks = [task for tasks in self.levels for task in tasks]
+
+    def contacts_changed(self) -> None:
+        """The OSF model and a fresh parameter server for the new contact set: the parameters
+        of the old set are never used (a periodic server computes its first set at once)."""
+        cfg = self.config
+        self.server.close()
+        self.group_tasks(self.active_tasks)
+        self.model = OsfModel(
+            self.levels,
+            self.frames,
+            self.kinds,
+            inverse=cfg.inverse,
+            coupling=cfg.coupling,
+            rcond=cfg.rcond,
+            affine=self.affine,
+        )
+        self.server = ParameterServer(self.model, cfg.params, self.ctx.robot)
+        self.wrench_weighting()
+
+    def wrench_weighting(self) -> None:
+        """The controller's wrench weighting for the current contact set (none here)."""
 
     # -- the native tick ----------------------------------------------------------------------
 
@@ -352,6 +385,9 @@ class ToOsf(OsfControllerBase):
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
         self.solver = ctx.new_solver()
+        self.wrench_weighting()
+
+    def wrench_weighting(self) -> None:
         self.Sf = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
 
     def native_settings(self, s: Any) -> None:
@@ -385,6 +421,7 @@ class ToOsf(OsfControllerBase):
     def step(self, state: RobotState, t: float) -> ControlOutput:
         if self.impl == "native":
             return self.native_step(state, t)
+        self.select_contacts(t)
         timer = StageTimer(state)
         cfg = self.config
         terms, per_level, refs, read = self.prepare(state, t)

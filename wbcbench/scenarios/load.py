@@ -45,10 +45,18 @@ _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("initial", "state"), None),
     (("initial", "settle"), 0.0),
     (("sim", "self_collision"), True),
+    (("sim", "touchdown_tolerance"), 0.05),
+    (("sim", "touchdown_load"), 20.0),
+    (("sim", "landing_tolerance"), 0.02),
+    (("walk",), None),
     (("perturbations",), PerturbationsSpec().model_dump(mode="json")),
 )
 # the same for keys of each contact
-_LATER_CONTACT_KEYS: tuple[tuple[str, Any], ...] = (("contact_geometry", "model"),)
+_LATER_CONTACT_KEYS: tuple[tuple[str, Any], ...] = (
+    ("contact_geometry", "model"),
+    ("schedule", None),
+    ("unload", 0.1),
+)
 
 
 @dataclass
@@ -285,6 +293,7 @@ def load_scenario(
         _check_reference_dim(file, i, task)
         _check_gains(file, i, task, spec.control_rate)
     _check_consistency(file, spec)
+    _check_schedule(file, spec)
     return LoadedScenario(spec, path, tuple(overrides))
 
 
@@ -456,6 +465,159 @@ def _check_consistency(file: str, spec: Scenario) -> None:
                 f"the control period 1/{spec.control_rate:g} s must be a whole number (≥ 1) of "
                 f"physics steps of sim.timestep = {spec.sim.timestep:g} s; e.g. control_rate: "
                 f"{hint:g}",
+            )
+
+
+def _check_walk(file: str, spec: Scenario) -> None:
+    """The walk's feet are contacts the walk alone schedules, and the tasks it names exist."""
+    walk = spec.walk
+    if walk is None:
+        return
+    frames = [c.frame for c in spec.contacts]
+    for j, foot in enumerate(walk.feet):
+        if foot not in frames:
+            raise ScenarioError(
+                file,
+                f"walk.feet[{j}]",
+                f"{foot!r} is not a contact of the scenario; valid choices: {', '.join(frames)}",
+            )
+        i = frames.index(foot)
+        if spec.contacts[i].schedule is not None:
+            raise ScenarioError(
+                file,
+                f"contacts[{i}].schedule",
+                f"contact {foot!r} is a foot of the walk, which schedules it; remove its schedule",
+            )
+    if walk.first_foot not in walk.feet:
+        raise ScenarioError(
+            file,
+            "walk.first",
+            f"{walk.first_foot!r} is not a foot of the walk; valid choices: {', '.join(walk.feet)}",
+        )
+    names = {t.name: t for t in spec.tasks}
+    coms = [t.name for t in spec.tasks if t.type == "com"]
+    if walk.com_task not in coms:
+        raise ScenarioError(
+            file,
+            "walk.com_task",
+            f"{walk.com_task!r} is not a com task of the scenario; valid choices: "
+            f"{', '.join(coms) or '(none: add a task of type com)'}",
+        )
+    turning = [t.name for t in spec.tasks if t.type in ("frame_orientation", "frame_pose")]
+    for j, name in enumerate(walk.heading_tasks):
+        if name not in turning:
+            raise ScenarioError(
+                file,
+                f"walk.heading_tasks[{j}]",
+                f"{name!r} is not a frame_orientation or frame_pose task; valid choices: "
+                f"{', '.join(turning) or '(none)'}",
+            )
+    for foot in walk.feet:
+        if f"swing.{foot}" in names:
+            i = spec.tasks.index(names[f"swing.{foot}"])
+            raise ScenarioError(
+                file,
+                f"tasks[{i}].name",
+                f"'swing.{foot}' is the name of the walk's swing task; rename this task",
+            )
+    if walk.footsteps is not None:
+        for j, step in enumerate(walk.footsteps):
+            if step.foot not in walk.feet:
+                raise ScenarioError(
+                    file,
+                    f"walk.footsteps[{j}].foot",
+                    f"{step.foot!r} is not a foot of the walk; valid choices: "
+                    f"{', '.join(walk.feet)}",
+                )
+            if j and step.foot == walk.footsteps[j - 1].foot:
+                raise ScenarioError(
+                    file,
+                    f"walk.footsteps[{j}].foot",
+                    f"{step.foot!r} steps twice in a row; the feet alternate",
+                )
+    # a duration shorter than the walk cuts it (a sweep's max_duration does): the run's
+    # metrics then count the steps it completed of those planned
+
+
+def _check_schedule(file: str, spec: Scenario) -> None:
+    """Contact schedules: intervals in order without overlap, touchdowns inside the run,
+    support at every instant, and no task that moves a frame a contact holds throughout."""
+    _check_walk(file, spec)
+    for i, c in enumerate(spec.contacts):
+        if c.schedule is None:
+            continue
+        key = f"contacts[{i}].schedule"
+        if not c.schedule:
+            raise ScenarioError(
+                file, key, "an empty schedule never holds the contact; give [[start, end], …]"
+            )
+        for k, (a, b) in enumerate(c.schedule):
+            if not 0 <= a < b:
+                raise ScenarioError(
+                    file, f"{key}[{k}]", f"[{a:g}, {b:g}] must satisfy 0 ≤ start < end [s]"
+                )
+            if k:
+                pa, pb = c.schedule[k - 1]
+                if a < pb:
+                    raise ScenarioError(
+                        file,
+                        f"{key}[{k}]",
+                        f"[{a:g}, {b:g}] overlaps [{pa:g}, {pb:g}] ({key}[{k - 1}]); give the "
+                        "intervals in time order, each starting after the previous one ends",
+                    )
+            if a > 0 and a >= spec.duration:
+                raise ScenarioError(
+                    file,
+                    f"{key}[{k}]",
+                    f"the touchdown at {a:g} s never happens: the run ends at {spec.duration:g} "
+                    "s; start the interval earlier or lengthen duration",
+                )
+            if b < spec.duration and b - a < c.unload:
+                raise ScenarioError(
+                    file,
+                    f"{key}[{k}]",
+                    f"[{a:g}, {b:g}] is shorter than the lift-off ramp unload = {c.unload:g} s; "
+                    "lengthen the interval or shorten unload",
+                )
+    if not spec.has_schedule:
+        return
+    from wbcbench.scenarios.walk import schedule_times
+
+    times = schedule_times(spec)
+    if spec.contacts:
+        # the instants nothing holds: walk the union of every contact's intervals
+        intervals = sorted(iv for per in times for iv in per)
+        covered = 0.0
+        for a, b in intervals:
+            if a > covered + 1e-12 and covered < spec.duration:
+                raise ScenarioError(
+                    file,
+                    "contacts",
+                    f"no contact is active over [{covered:g}, {min(a, spec.duration):g}] s: "
+                    "the robot has no support then; make the schedules' intervals meet or "
+                    "overlap",
+                )
+            covered = max(covered, b)
+        if covered < spec.duration:
+            raise ScenarioError(
+                file,
+                "contacts",
+                f"no contact is active over [{covered:g}, {spec.duration:g}] s: the robot has "
+                "no support then; make the schedules' intervals meet or overlap",
+            )
+    held = {c.frame: i for i, c in enumerate(spec.contacts) if times[i] == [(0.0, np.inf)]}
+    for j, t in enumerate(spec.tasks):
+        moves = t.type == "frame_position" or (
+            t.type == "frame_pose" and any(not a.startswith("r") for a in t.selected_axes)
+        )
+        if t.frame in held and moves:
+            i = held[t.frame]
+            raise ScenarioError(
+                file,
+                f"tasks[{j}].frame",
+                f"task {t.name!r} moves frame {t.frame!r}, which contacts[{i}] holds for the "
+                f"whole run; give contacts[{i}] a schedule with a swing interval (or make it a "
+                "foot of the walk), or remove the task",
             )
 
 

@@ -256,6 +256,17 @@ class ContactSpec(Strict):
     facets: int = Field(4, ge=3, le=64, description="edges of the friction pyramid")
     mu_yaw: float | None = Field(None, gt=0)
     cop: CopBox | None = None
+    schedule: list[tuple[float, float]] | None = Field(
+        None,
+        description="activity intervals [[start, end], …] [s]: the frame is held inside them "
+        "and free between them (a swing task may drive it); omitted: held throughout",
+    )
+    unload: float = Field(
+        0.1,
+        gt=0,
+        description="[s] before each lift-off over which the normal-force bounds ramp to zero "
+        "(and after each touchdown over which f_min ramps in)",
+    )
     contact_geometry: Literal["model", "box"] = Field(
         "model",
         description="what the simulation's foot is: the model's own geometry, or the sole box "
@@ -327,6 +338,19 @@ class SimSpec(Strict):
     )
     contact_slip: float = Field(
         0.02, gt=0, description="fall when a held contact frame moves more than this [m]"
+    )
+    touchdown_tolerance: float = Field(
+        0.05,
+        gt=0,
+        description="a scheduled touchdown must carry load within this time of its schedule [s]",
+    )
+    touchdown_load: float = Field(
+        20.0, gt=0, description="the normal force from which a landing foot carries load [N]"
+    )
+    landing_tolerance: float = Field(
+        0.02,
+        gt=0,
+        description="end the run when a foot lands farther than this from its target [m]",
     )
     max_consecutive_failures: int = Field(
         20, ge=1, description="stop the run after this many failed control ticks in a row"
@@ -419,6 +443,66 @@ class EnvironmentSpec(Strict):
         if dup:
             raise ValueError(f"obstacle names must be unique; repeated: {', '.join(dup)}")
         return self
+
+
+class FootstepSpec(Strict):
+    """One landing of an explicit walk: the foot's contact frame position [m] and yaw [rad]."""
+
+    foot: str
+    position: tuple[float, float, float]
+    yaw: float = 0.0
+
+
+class SwingTaskSpec(Strict):
+    """The swing-foot tasks a walk adds (one ``frame_pose`` task ``swing.<foot>`` per foot)."""
+
+    priority: int = Field(1, ge=1)
+    weight: float | None = Field(None, gt=0)
+    kp: float = Field(400.0, ge=0)
+    kv: float = Field(40.0, ge=0)
+
+
+class WalkSpec(Strict):
+    """A walking pattern (:mod:`wbcbench.tasks.walking`): footsteps, the feet's contact schedule,
+    swing-foot tasks, the CoM task's reference (LIPM / DCM) and the heading of chosen tasks."""
+
+    feet: tuple[str, str] = Field(description="the two contacts (frames) that are the feet")
+    first: str | None = Field(None, description="the foot that steps first (feet[0] by default)")
+    steps: int | None = Field(None, ge=2, le=1000, description="steps of a generated walk")
+    length: float = Field(0.1, ge=-1, le=1, description="step length [m]")
+    width: float | None = Field(
+        None, gt=0, le=2, description="distance between the feet [m] (the starting one's)"
+    )
+    turn: float = Field(0.0, ge=-1.6, le=1.6, description="turn per step [rad]")
+    footsteps: list[FootstepSpec] | None = Field(
+        None, description="explicit landings in order, instead of steps/length/width/turn"
+    )
+    single: float = Field(0.8, gt=0, le=10, description="single support (one swing) [s]")
+    double: float = Field(0.2, gt=0, le=10, description="double support between swings [s]")
+    start: float = Field(1.0, gt=0, le=60, description="double support before the first step [s]")
+    end: float = Field(1.5, gt=0, le=60, description="double support after the last step [s]")
+    unload: float = Field(0.1, gt=0, description="lift-off ramp [s], at most double")
+    swing_height: float = Field(0.05, ge=0, le=0.5, description="swing clearance [m]")
+    com_task: str = Field("com", description="the com task the CoM reference drives")
+    heading_tasks: list[str] = Field(
+        default_factory=list,
+        description="frame_orientation / frame_pose tasks (pelvis, torso) that turn with the walk",
+    )
+    swing: SwingTaskSpec = Field(default_factory=lambda: SwingTaskSpec())
+
+    @model_validator(mode="after")
+    def _shape(self) -> WalkSpec:
+        if (self.steps is None) == (self.footsteps is None):
+            raise ValueError("give either 'steps' (a generated walk) or 'footsteps', not both")
+        if self.feet[0] == self.feet[1]:
+            raise ValueError(f"two different feet, got {self.feet[0]!r} twice")
+        if self.unload > self.double:
+            raise ValueError(f"unload ({self.unload} s) must be at most double ({self.double} s)")
+        return self
+
+    @property
+    def first_foot(self) -> str:
+        return self.first or self.feet[0]
 
 
 # -- perturbations: what a real robot meets and the ideal run does not
@@ -564,6 +648,7 @@ class Scenario(Strict):
         default_factory=dict, description="per-controller settings, validated by each controller"
     )
     metrics: MetricsSpec = Field(default_factory=lambda: MetricsSpec())
+    walk: WalkSpec | None = None
     environment: EnvironmentSpec = Field(default_factory=lambda: EnvironmentSpec())
     perturbations: PerturbationsSpec = Field(
         default_factory=lambda: PerturbationsSpec(),
@@ -577,3 +662,8 @@ class Scenario(Strict):
     @property
     def dt(self) -> float:
         return 1.0 / self.control_rate
+
+    @property
+    def has_schedule(self) -> bool:
+        """Its contacts change over the run (a contact schedule or a walk)."""
+        return self.walk is not None or any(c.schedule is not None for c in self.contacts)

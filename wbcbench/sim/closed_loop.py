@@ -11,6 +11,14 @@ failed tick too, with the same fallback; after ``sim.max_consecutive_failures`` 
 row the run stops with status ``failed``. A run stops with status ``fell`` when the base drops
 below ``sim.fall_height`` of its initial height, or a held contact frame slips more than
 ``sim.contact_slip`` or carries no load for 50 ms.
+
+A scenario whose contacts change (a contact schedule or a walk) holds a contact to these limits
+only while it is active and fully loaded (not while it unloads before lift-off or loads after
+touchdown). Each tick the runner reports the feet's simulated normal forces to the schedule,
+which confirms touchdowns; a touchdown that does not happen within ``sim.touchdown_tolerance``
+of its time, or lands farther than ``sim.landing_tolerance`` from its footstep, ends the run
+``failed`` with a message that names the contact and the time or target
+(:meth:`~wbcbench.tasks.schedule.ContactSchedule.observe`).
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ from wbcbench.runs import Run
 from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import LoadedScenario, sole_boxes, torque_limits
 from wbcbench.sim.perturbations import Pushes, Sensing
+from wbcbench.tasks.schedule import ContactSchedule
 
 STAGES = ("dynamics", "build", "solve", "solve_internal", "total")
 LOST_CONTACT_TICKS = 50
@@ -74,6 +83,8 @@ class RunResult:
     contact_frames: list[str]
     tau_max: np.ndarray
     task_parts: dict[str, list[str]]
+    #: the walk the run followed, as plain data (:meth:`WalkPlan.to_dict`), if any
+    walk: dict[str, Any] | None = None
 
     @property
     def fell(self) -> bool:
@@ -274,6 +285,7 @@ def run_closed_loop(
     mujoco.mj_forward(model, data)
 
     controller = run.make_controller(wrap_solver)
+    schedule = controller.ctx.schedule
     own_robot = controller.ctx.robot  # the simulated one, or one with the model error
     pert = spec.perturbations
     perturbed = pert.active
@@ -307,8 +319,25 @@ def run_closed_loop(
             )
         base_z0 = float(data.qpos[2])
         contact_p0 = [sensor.frame_pose(data, i)[0] for i in range(len(frames))]
+        sim_w = sensor.wrenches(data)
+        held = np.ones(len(frames), dtype=bool)
+        confirmed_before: dict[tuple[int, int], float] = {}
+        positions: list[np.ndarray] = []
         for tick in range(n_ticks):
             t = tick * spec.dt
+            if schedule is not None:
+                positions = [sensor.frame_pose(data, i)[0] for i in range(len(frames))]
+                why = schedule.observe(t, sim_w[2::6], positions)
+                if why:
+                    status, message = "failed", why
+                    break
+                for i, _ in set(schedule.confirmed) - set(confirmed_before):
+                    contact_p0[i] = positions[i]  # a foot landed: held from where it is
+                confirmed_before = dict(schedule.confirmed)
+                phase = schedule.phase(t)
+                held[:] = False
+                for j, i in enumerate(phase.active):
+                    held[i] = phase.lower[j] >= 1.0 and phase.upper[j] >= 1.0
             q, v = mj_to_pin(robot, data.qpos, data.qvel)
             state = RobotState(own_robot, *sensing.measure(q, v), pin_data)
             out = controller.step(state, t)
@@ -347,10 +376,20 @@ def run_closed_loop(
             for j, name in enumerate(robot.joint_names):
                 row[f"tau.{name}"] = tau[j]
             sim_w = sensor.wrenches(data)
+            wrench = controller.full_wrench(out.wrench) if out.ok else None
             for i, f in enumerate(frames):
                 for c, comp in enumerate(("fx", "fy", "fz", "mx", "my", "mz")):
-                    row[f"wrench_pred.{f}.{comp}"] = out.wrench[6 * i + c] if out.ok else np.nan
+                    row[f"wrench_pred.{f}.{comp}"] = np.nan if wrench is None else wrench[6 * i + c]
                     row[f"wrench_sim.{f}.{comp}"] = sim_w[6 * i + c]
+            if schedule is not None:
+                active = dict(zip(phase.active, phase.upper, strict=True))
+                for i, f in enumerate(frames):
+                    row[f"active.{f}"] = active.get(i, 0.0)
+                    pos = positions[i]
+                    row[f"foot.{f}.x"], row[f"foot.{f}.y"], row[f"foot.{f}.z"] = (
+                        float(x) for x in pos
+                    )
+                row["touchdowns"] = float(len(schedule.confirmed))
             row["base_z"] = float(data.qpos[2])
             # the robot's own CoM and task errors: with perturbations the controller's state
             # (noisy, on its model) is not the robot's; measure it on the simulated one
@@ -372,7 +411,9 @@ def run_closed_loop(
             if data.qpos[2] < spec.sim.fall_height * base_z0:
                 status, message = "fell", f"base height {data.qpos[2]:.3f} m at t = {t:.3f} s"
                 break
-            lost = _lost_contact(sensor, data, contact_p0, sim_w, unloaded, spec.sim.contact_slip)
+            lost = _lost_contact(
+                sensor, data, contact_p0, sim_w, unloaded, spec.sim.contact_slip, held
+            )
             if lost:
                 status, message = "fell", f"{lost} at t = {t:.3f} s"
                 break
@@ -391,7 +432,20 @@ def run_closed_loop(
         contact_frames=frames,
         tau_max=tau_max,
         task_parts=task_parts,
+        walk=walk_record(schedule),
     )
+
+
+def walk_record(schedule: ContactSchedule | None) -> dict[str, Any] | None:
+    """The walk a run followed as plain data: the plan (:meth:`WalkPlan.to_dict`) and its
+    confirmed touchdowns ``landings`` (frame, time [s], distance to the footstep [m])."""
+    if schedule is None or schedule.plan is None:
+        return None
+    out = schedule.plan.to_dict()
+    out["landings"] = [
+        {"foot": foot, "t": t, "error": error} for foot, t, error in schedule.landings
+    ]
+    return out
 
 
 def torque_excess(tau: np.ndarray, tau_max: np.ndarray, joints: tuple[str, ...]) -> str:
@@ -454,8 +508,13 @@ def _lost_contact(
     wrench: np.ndarray,
     unloaded: np.ndarray,
     slip: float,
+    held: np.ndarray,
 ) -> str:
+    """Why a contact the robot holds (``held``: active and fully loaded) was lost, or ""."""
     for i, frame in enumerate(sensor.frames):
+        if not held[i]:
+            unloaded[i] = 0
+            continue
         p, _ = sensor.frame_pose(data, i)
         if np.linalg.norm(p - p0[i]) > slip:
             hint = (

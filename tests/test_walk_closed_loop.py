@@ -1,0 +1,55 @@
+"""A short walk in closed loop: the feet lift off and land on schedule and the run ends ok; a
+touchdown the simulated foot never confirms ends the run with a message naming it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from wbcbench.runs import plan_run
+from wbcbench.sim.closed_loop import run_closed_loop
+
+#: two steps on a quick timing at 500 Hz: lift-offs at 0.5 and 1.0 s, touchdowns at 0.9 and
+#: 1.4 s, at rest by 1.8 s
+SHORT = [
+    "walk.steps=2",
+    "walk.start=0.4",
+    "walk.double=0.1",
+    "walk.single=0.4",
+    "walk.end=0.3",
+    "walk.unload=0.05",
+    "duration=1.8",
+    "control_rate=500",
+    "metrics.window=[0, 1.8]",
+]
+
+
+def test_a_short_walk_lands_every_step() -> None:
+    run = plan_run("tocabi_walk", "qp_wbc", "daqp", overrides=SHORT)
+    result = run_closed_loop(run)
+    assert result.status == "ok", result.message
+    log = result.log.arrays()
+    assert log["touchdowns"][-1] == 2
+    # the swing foot is released in single support and held again after touchdown
+    t = log["t"]
+    assert log["active.l_sole"][(t > 0.55) & (t < 0.85)].max() == 0
+    assert log["active.l_sole"][t > 1.0].min() > 0
+    # the inactive contact's predicted wrench is zero, the unloading one's ramps down
+    fz = log["wrench_pred.l_sole.fz"]
+    assert np.abs(fz[(t > 0.55) & (t < 0.85)]).max() == 0
+    weight = pin.computeTotalMass(result.robot.pin_model) * 9.81
+    ramp = (t >= 0.45) & (t < 0.5)
+    assert np.all(fz[ramp] <= (0.5 - t[ramp]) / 0.05 * weight * (1 + 1e-6) + 1e-6)
+    assert result.walk is not None and len(result.walk["footsteps"]) == 4
+    # the CoM follows the plan
+    assert np.mean(log["err.com.pos"]) < 5e-3
+
+
+def test_a_touchdown_that_never_happens_ends_the_run() -> None:
+    run = plan_run("tocabi_walk", "qp_wbc", "daqp", overrides=[*SHORT, "sim.touchdown_load=5000"])
+    result = run_closed_loop(run)
+    assert result.status == "failed"
+    assert result.message.startswith(
+        "the touchdown of contact 'l_sole' scheduled at t = 0.900 s did not happen: its foot "
+        "carried less than 5000 N until t = 0.952 s (sim.touchdown_tolerance = 0.05 s)"
+    ), result.message
