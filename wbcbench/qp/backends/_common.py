@@ -130,3 +130,37 @@ def fill_buffers(buffers: Any, problem: Any, fields: frozenset[str] | None = Non
             getattr(buffers, key)[...] = getattr(problem, key)
     if problem.has_box and fields & {"lb", "ub"}:
         buffers.lb[...], buffers.ub[...] = problem.box()
+
+
+def native_solution(
+    cpp: Any,
+    buffers: Any,
+    problem: Any,
+    copy_time: float,
+    internal: bool = False,
+    answer: Any = None,
+) -> Any:
+    """Solve with a native solver object of the module (``cpp.solve(buffers)``) and read its
+    outcome into a :class:`~wbcbench.qp.solution.Solution`.
+
+    ``copy_time`` [s] is the copy into ``buffers``, counted in the set-up time; ``internal``:
+    report the object's own timer; ``answer(solution)``: whether x and the duals are read
+    (default: when the solve succeeded).
+    """
+    from wbcbench.qp.solution import Solution, SolutionStatus
+
+    status, iterations, setup, wall, timer, _, rebuilt, message = cpp.solve(buffers)
+    sol = Solution(
+        status=SolutionStatus(status),
+        iterations=None if iterations < 0 else iterations,
+        wall_time=wall,
+        setup_time=copy_time + setup,
+        internal_time=timer if internal else None,
+        message=message,
+        rebuilt=rebuilt,
+    )
+    if answer(sol) if answer is not None else sol.success:
+        sol.x = np.array(cpp.x)
+        sol.y, sol.z = np.array(cpp.y), np.array(cpp.z)
+        sol.z_box = np.array(cpp.z_box) if problem.has_box else None
+    return sol

@@ -22,13 +22,12 @@ from __future__ import annotations
 import time
 from typing import Any
 
-import numpy as np
-
 from wbcbench import _native
 from wbcbench.qp.backends._common import fill_buffers as fill
+from wbcbench.qp.backends._common import native_solution
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Problem
-from wbcbench.qp.solution import Solution, SolutionStatus
+from wbcbench.qp.solution import Solution
 
 LIBRARY = "eiquadprog"
 
@@ -85,17 +84,4 @@ class EiquadprogSolver(QPSolver):
 
     @staticmethod
     def _call(cpp: Any, buffers: Any, problem: Problem, copy_time: float) -> Solution:
-        status, iterations, setup, wall, _, _, rebuilt, message = cpp.solve(buffers)
-        sol = Solution(
-            status=SolutionStatus(status),
-            iterations=None if iterations < 0 else iterations,
-            wall_time=wall,
-            setup_time=copy_time + setup,
-            message=message,
-            rebuilt=rebuilt,
-        )
-        if sol.success:
-            sol.x = np.array(cpp.x)
-            sol.y, sol.z = np.array(cpp.y), np.array(cpp.z)
-            sol.z_box = np.array(cpp.z_box) if problem.has_box else None
-        return sol
+        return native_solution(cpp, buffers, problem, copy_time)

@@ -41,10 +41,8 @@ from __future__ import annotations
 import time
 from typing import Any
 
-import numpy as np
-
 from wbcbench import _native
-from wbcbench.qp.backends._common import fill_buffers
+from wbcbench.qp.backends._common import fill_buffers, native_solution
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Problem
 from wbcbench.qp.solution import Solution, SolutionStatus
@@ -114,18 +112,11 @@ class QpOASESLibdwbcSolver(QPSolver):
 
     @staticmethod
     def _call(cpp: Any, buffers: Any, problem: Problem, copy_time: float) -> Solution:
-        status, iterations, setup, wall, internal, _, rebuilt, message = cpp.solve(buffers)
-        sol = Solution(
-            status=SolutionStatus(status),
-            iterations=None if iterations < 0 else iterations,
-            wall_time=wall,
-            setup_time=copy_time + setup,
-            internal_time=internal,
-            message=message,
-            rebuilt=rebuilt,
+        return native_solution(
+            cpp,
+            buffers,
+            problem,
+            copy_time,
+            internal=True,
+            answer=lambda sol: sol.status in (SolutionStatus.SOLVED, SolutionStatus.MAX_ITER),
         )
-        if sol.status in (SolutionStatus.SOLVED, SolutionStatus.MAX_ITER):
-            sol.x = np.array(cpp.x)
-            sol.y, sol.z = np.array(cpp.y), np.array(cpp.z)
-            sol.z_box = np.array(cpp.z_box) if problem.has_box else None
-        return sol
