@@ -63,8 +63,9 @@ class NativeConfig(NativeImplConfig):
     solver_calls: Literal["native", "python"] = Field(
         "native",
         description="impl native: call the QP backend from C++ where the module links its "
-        "library (osqp, osqp_libdwbc, qpoases), or every QP through the Python solver handle's "
-        "lean path; backends the module does not link always go through Python",
+        "library (daqp, osqp, osqp_libdwbc, qpoases, qpoases_libdwbc, eiquadprog), or every QP "
+        "through the Python solver handle's lean path; backends the module does not link "
+        "always go through Python",
     )
 
 

@@ -19,9 +19,10 @@ point whose duality gap the independent check refuses, while DAQP reports it opt
 
 The :class:`daqp.Model` API is used in all modes. Warm start: ``setup(..., primal_start)`` on a
 fresh model (DAQP derives the initial active set from the guess). Hot: the model is kept and
-``update`` sends the changed data;
-DAQP starts from the previous active set. Internal time: DAQP's ``solve_time`` (covers the
-solve call; its setup is timed separately). Tiers (as qpbenchmark): ``primal_tol`` and
+``update`` sends the changed data; DAQP starts from the previous active set. Native ticks solve
+through the same release's C library compiled into the native module
+(:meth:`DAQPSolver.native_solver`), driven the same way. Internal time: DAQP's ``solve_time``
+(covers the solve call; its setup is timed separately). Tiers (as qpbenchmark): ``primal_tol`` and
 ``dual_tol`` set to the tier's tolerance.
 """
 
@@ -33,6 +34,7 @@ from typing import Any
 import daqp as _daqp
 import numpy as np
 
+from wbcbench import _native
 from wbcbench.qp.backends._common import tier_eps
 from wbcbench.qp.base import Guess, QPSolver
 from wbcbench.qp.problem import Array, Problem
@@ -42,6 +44,9 @@ from wbcbench.qp.solution import Solution, SolutionStatus
 LIBRARY = "daqp"
 
 EQUALITY_SENSE = 5
+
+#: the settings this backend gives DAQP unless told otherwise (see the module docstring)
+DEFAULT_SETTINGS: dict[str, Any] = {"eps_prox": -1e-6, "eq_reduction": 1}
 
 _STATUS = {
     1: SolutionStatus.SOLVED,
@@ -108,11 +113,28 @@ class DAQPSolver(QPSolver):
         eps = tier_eps(tier)
         return {} if eps is None else {"primal_tol": eps, "dual_tol": eps}
 
+    def _settings(self) -> dict[str, Any]:
+        """The settings every model gets: the defaults above, then this handle's."""
+        return {**DEFAULT_SETTINGS, **self.options}
+
+    def native_solver(self) -> Any | None:
+        """DAQP's C library compiled into the native module (the C sources of the same daqp
+        release), with this handle's mode and settings; None when the module is not built or a
+        setting is not a plain number it knows."""
+        core = _native._core
+        if core is None:
+            return None
+        names = set(core.daqp_setting_names())
+        settings = self._settings()
+        if not all(k in names and isinstance(v, bool | int | float) for k, v in settings.items()):
+            return None
+        return core.DaqpSolver(self.mode, {k: float(v) for k, v in settings.items()})
+
     def _solve_fresh(self, problem: Problem, guess: Guess | None, keep: bool) -> Solution:
         t0 = time.perf_counter()
         M, (hi, lo), sense = _matrix(problem), _bounds(problem), _sense(problem)
         model = _daqp.Model()
-        model.settings = {"eps_prox": -1e-6, "eq_reduction": 1, **self.options}
+        model.settings = self._settings()
         kwargs: dict[str, Any] = {}
         if guess is not None:
             # Primal only: DAQP 0.11 given the duals of a different problem as dual_start can

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "bind/bind.hpp"
+#include "qp/daqp_solver.hpp"
 #include "qp/eiquadprog_solver.hpp"
 #include "qp/native_solvers.hpp"
 #include "qp/osqp_solver.hpp"
@@ -90,6 +91,16 @@ WBCBENCH_BIND(solvers, kCore, m) {
             new (self) EiquadprogSolver(mode_of(mode), options);
           },
           nb::arg("mode"), nb::arg("options") = EiquadprogOptions());
+
+  nb::class_<DaqpSolver, QpSolver>(m, "DaqpSolver",
+                                   "DAQP (its C library), as wbcbench.qp's daqp (daqp.Model).")
+      .def(
+          "__init__",
+          [](DaqpSolver* self, const std::string& mode, const DaqpOptions& options) {
+            new (self) DaqpSolver(mode_of(mode), options);
+          },
+          nb::arg("mode"), nb::arg("options") = DaqpOptions());
+  m.def("daqp_setting_names", &daqp_setting_names);
 
   nb::class_<NativeSolvers>(m, "NativeSolvers",
                             "The level solves of a hierarchy tick that stay in C++.")

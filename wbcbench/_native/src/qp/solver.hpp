@@ -88,12 +88,14 @@ class QpSolver {
   // forget the kept native object
   virtual void drop_native() = 0;
   virtual bool has_native() const = 0;
+  // the initial guess a warm or hot solve of qp starts from: the previous solution, with its
+  // duals where their shapes fit (false in cold mode or when there is none)
+  bool guess_from_previous(const QpBuffers& qp, Guess& guess) const;
 
   QpOutcome outcome_;
   QpSolution solution_;
 
  private:
-  bool guess_from_previous(const QpBuffers& qp, Guess& guess) const;
   unsigned changed_fields(const QpBuffers& qp) const;
 
   SolveMode mode_;
