@@ -12,7 +12,12 @@ One QP per tick over the optimised task references of every level and an interna
                −Γ_max ≤ Γ ≤ Γ_max,  |ẍ_opt,i| ≤ ẍ_max,i
     then Γ from eq. (7) with the optimised references.
 
-Γ and f are substituted rather than kept as variables, so the QP has Σ m_i + c variables. The
+Γ and f are substituted rather than kept as variables, and F_opt = N w ranges over a basis N of
+G's null space (:func:`internal_basis`), which meets eq. (14) by construction: the QP has
+Σ m_i + c − 6 variables and no equality rows. ``internal: constraint`` keeps F_opt's c variables
+and eq. (14) as six equality rows instead: the same optimum, but an active-set solver that
+factorises its equality rows (qpOASES projects its Hessian onto their null space on every
+matrix update) pays several times more for it (docs/qpoases.md). The
 wrench term penalises the tangential forces and the moments of the *total* wrench (S_f drops the
 normal forces), which is what the paper says it is for ("the most stable CoP position and the
 least slipping"); ``wrench_cost: internal`` penalises only F_opt, the literal eq. (11). The task
@@ -325,6 +330,23 @@ class OsfControllerBase(NativeController):
         )
 
 
+#: why a tick with ``internal: basis`` failed when G's first contact block is singular
+SINGULAR_BASIS = "to_osf: the grasp map's first contact block is singular; use internal: constraint"
+
+
+def internal_basis(G: np.ndarray) -> np.ndarray | None:
+    """A basis N of the null space of the grasp map G (6, c): the internal wrenches are
+    F = N w. With B, G's first six columns (the first 6-D contact's block, invertible),
+    G F = 0 ⇔ F_B = −B⁻¹ G_R F_R, so N = [−B⁻¹ G_R; I] and w = F_R, the other contacts' part of
+    F. This basis is the same in every implementation (no factorisation whose signs or
+    rotation may differ). None when there are fewer than six columns or B is singular."""
+    c = G.shape[1]
+    B = G[:, :6]
+    if c < 6 or not np.linalg.cond(B, 1) < 1e12:
+        return None
+    return np.vstack([-np.linalg.solve(B, G[:, 6:]), np.eye(c - 6)])
+
+
 def wrench_selection(weights: list[float], n_contacts: int, controller: str) -> np.ndarray:
     """Diagonal wrench weighting (6 n_contacts, 6 n_contacts) from 6 values per contact (repeated)
     or one per wrench row; rows weighted 0 are dropped."""
@@ -361,6 +383,12 @@ class ToOsfConfig(OsfBaseConfig):
         1e-3,
         ge=0,
         description="weight of ‖F_opt‖² relative to H_w (keeps the Hessian positive definite)",
+    )
+    internal: Literal["basis", "constraint"] = Field(
+        "basis",
+        description="F_opt as N w over a basis N of the grasp map's null space (a QP with no "
+        "equality rows and 6 variables fewer), or as 6c variables with G F_opt = 0 as equality "
+        "rows (the literal eq. 14); the same optimum",
     )
 
     @field_validator("weights")
@@ -400,6 +428,7 @@ class ToOsf(OsfControllerBase):
         s.wrench_total = cfg.wrench_cost == "total"
         s.regularization = cfg.regularization
         s.Sf = np.asarray(self.Sf, dtype=float).reshape(-1, self.nc)
+        s.internal_basis = cfg.internal == "basis"
 
     def qp_calls(self, tick: Any) -> list[QpCall]:
         return [QpCall(tick.qp, "to_osf", self.solver, self.config.solver_calls)]
@@ -429,7 +458,12 @@ class ToOsf(OsfControllerBase):
         k, nc = state.k, self.nc
         rho_ref = np.concatenate(refs)
         nr = rho_ref.size
-        nx = nr + nc
+        # F_opt = N w: N a basis of G's null space (internal_basis), or F_opt itself (N = I)
+        N = internal_basis(p.G) if nc >= 6 and cfg.internal == "basis" else None
+        if N is None and nc >= 6 and cfg.internal == "basis":
+            return self.failed(timer, read, terms, SINGULAR_BASIS, [])
+        nw = nc if N is None else N.shape[1]
+        nx = nr + nw
         weights = cfg.weights[:1] if cfg.weighting == "identical" else cfg.weights
         h_task = np.concatenate(
             [np.full(term.dim, task_weight(term, weights)) for lv in per_level for term in lv]
@@ -439,9 +473,9 @@ class ToOsf(OsfControllerBase):
         # blocks of the Hessian are O(1) (ill-conditioned otherwise: daqp cycles)
         w_f = scale * cfg.wrench_weight if nc and cfg.wrench_weight > 0 else scale
         sigma = 1.0 / np.sqrt(w_f)
-        D = np.concatenate([np.ones(nr), np.full(nc, sigma)])
+        D = np.concatenate([np.ones(nr), np.full(nw, sigma)])
         # wrench f = A_f x + f_c  (eq. 13)
-        A_f = np.hstack([p.F @ p.K, np.eye(nc)])
+        A_f = np.hstack([p.F @ p.K, np.eye(nc) if N is None else N])
         f_c = p.F @ p.gamma0 + p.f0
         H = np.zeros((nx, nx))
         g = np.zeros(nx)
@@ -454,11 +488,15 @@ class ToOsf(OsfControllerBase):
                 H += hw * (SA.T @ SA)
                 g += hw * (SA.T @ (self.Sf @ f_c))
             else:
-                H[nr:, nr:] += hw * (self.Sf.T @ self.Sf)
-        H[np.arange(nr, nx), np.arange(nr, nx)] += cfg.regularization * w_f
-        A_eq = np.hstack([np.zeros((6, nr)), p.G]) if nc else np.zeros((0, nx))
+                SN = self.Sf if N is None else self.Sf @ N
+                H[nr:, nr:] += hw * (SN.T @ SN)
+        if N is None:
+            H[np.arange(nr, nx), np.arange(nr, nx)] += cfg.regularization * w_f
+        else:  # ‖F_opt‖² = wᵀ NᵀN w
+            H[nr:, nr:] += cfg.regularization * w_f * (N.T @ N)
+        A_eq = np.hstack([np.zeros((6, nr)), p.G]) if nc and N is None else np.zeros((0, nx))
         b_eq = np.zeros(A_eq.shape[0])
-        A_tau = np.hstack([p.K, p.Yw])
+        A_tau = np.hstack([p.K, p.Yw if N is None else p.Yw @ N])
         tau_max = self.ctx.tau_max
         C = np.vstack([A_tau, self.Cw @ A_f]) if nc else A_tau
         lower = -tau_max - p.gamma0
@@ -470,8 +508,8 @@ class ToOsf(OsfControllerBase):
         bound = np.concatenate(self.acc_bound)
         lb = ub = None
         if np.isfinite(bound).any():
-            lb = np.concatenate([-bound, np.full(nc, -np.inf)])
-            ub = np.concatenate([bound, np.full(nc, np.inf)])
+            lb = np.concatenate([-bound, np.full(nw, -np.inf)])
+            ub = np.concatenate([bound, np.full(nw, np.inf)])
         # x = D x̃
         H = H * D[:, None] * D[None, :]
         problem = Problem(H, g * D, A_eq * D, b_eq, C * D, lower, upper, lb, ub, name="to_osf")
@@ -482,7 +520,7 @@ class ToOsf(OsfControllerBase):
                 timer, read, terms, f"{sol.solver}: {sol.status.value}: {sol.message}", [problem]
             )
         x = sol.x * D
-        rho, f_opt = x[:nr], x[nr:]
+        rho, f_opt = x[:nr], (x[nr:] if N is None else N @ x[nr:])
         opt_refs = np.split(rho, np.cumsum([r.size for r in refs])[:-1])
         partial = p.partial_torques(opt_refs)
         dist = p.Yw @ f_opt if nc else np.zeros(k)

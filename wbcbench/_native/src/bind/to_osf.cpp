@@ -16,7 +16,8 @@ WBCBENCH_BIND(to_osf, kController, m) {
       .def_rw("wrench_weight", &ToOsfSettings::wrench_weight)
       .def_rw("wrench_total", &ToOsfSettings::wrench_total)
       .def_rw("regularization", &ToOsfSettings::regularization)
-      .def_rw("Sf", &ToOsfSettings::Sf);
+      .def_rw("Sf", &ToOsfSettings::Sf)
+      .def_rw("internal_basis", &ToOsfSettings::internal_basis);
 
   nb::class_<ToOsfTick, OsfTick>(m, "ToOsfTick", "The task-oriented OSF's tick.")
       .def(nb::init<const std::string&, const std::vector<std::string>&,

@@ -4,6 +4,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include <Eigen/LU>
+
 namespace wbcbench {
 
 namespace {
@@ -17,22 +19,28 @@ void ToOsfTick::configure(const ToOsfSettings& settings) {
   configure_osf(settings, true);
   if (s_.row_weights.size() != nr_) throw std::invalid_argument("to_osf: one weight per task row");
   if (s_.Sf.cols() != nc_) throw std::invalid_argument("to_osf: Sf of wrong size");
-  nx_ = nr_ + nc_;
+  // F_opt = N w when the first contact's block of G is invertible (the Python reference's test,
+  // on the initial configuration's shape: 6-D contacts keep it invertible)
+  basis_ = s_.internal_basis && nc_ >= 6;
+  nf_ = basis_ ? nc_ - 6 : nc_;
+  nx_ = nr_ + nf_;
   h_task_ = s_.row_weights;
   scale_ = nr_ ? 1.0 / h_task_.maxCoeff() : 1.0;
   // F_opt is solved for in units of σ so that both Hessian blocks are O(1)
   w_f_ = (nc_ && s_.wrench_weight > 0) ? scale_ * s_.wrench_weight : scale_;
   const double sigma = 1.0 / std::sqrt(w_f_);
   D_.setOnes(nx_);
-  D_.tail(nc_).setConstant(sigma);
+  D_.tail(nf_).setConstant(sigma);
   const bool box = (s_.acc_bound.array().abs() < kInf).any();
-  qp_.resize(nx_, nc_ ? 6 : 0, k() + static_cast<int>(s_.Cw.rows()), box);
+  qp_.resize(nx_, nc_ && !basis_ ? 6 : 0, k() + static_cast<int>(s_.Cw.rows()), box);
   if (box) {
     qp_.lb.head(nr_) = -s_.acc_bound;
     qp_.ub.head(nr_) = s_.acc_bound;
   }
   Af_.setZero(nc_, nx_);
-  Af_.rightCols(nc_).setIdentity();
+  if (!basis_) Af_.rightCols(nc_).setIdentity();
+  N_.setZero(nc_, nf_);
+  if (basis_) N_.bottomRows(nf_).setIdentity();
   rho_.setZero(nr_);
   f_opt_.setZero(nc_);
 }
@@ -42,10 +50,15 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
   const auto t0 = Clock::now();
   evaluate_osf(q, v, t);
   const OsfParams& p = params_;
+  if (basis_ && !internal_basis()) {
+    throw std::runtime_error(
+        "to_osf: the grasp map's first contact block is singular; use internal: constraint");
+  }
   const int kk = k();
   const Vector& ref = tasks_.acc_ref();
   // f = A_f x + f_c  (eq. 13)
   Af_.leftCols(nr_).noalias() = p.F * p.K;
+  if (basis_ && nf_ > 0) Af_.rightCols(nf_) = N_;
   fc_ = p.f0;
   fc_.noalias() += p.F * p.gamma0;
   qp_.H.setZero();
@@ -58,16 +71,31 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
       SA_.noalias() = s_.Sf * Af_;
       qp_.H.noalias() += hw * (SA_.transpose() * SA_);
       qp_.g.noalias() += hw * (SA_.transpose() * (s_.Sf * fc_));
+    } else if (basis_) {
+      if (nf_ > 0) {  // (a single contact has no internal wrench)
+        SA_.noalias() = s_.Sf * N_;
+        qp_.H.bottomRightCorner(nf_, nf_).noalias() += hw * (SA_.transpose() * SA_);
+      }
     } else {
       qp_.H.bottomRightCorner(nc_, nc_).noalias() += hw * (s_.Sf.transpose() * s_.Sf);
     }
   }
-  qp_.H.bottomRightCorner(nc_, nc_).diagonal().array() += s_.regularization * w_f_;
-  if (nc_) {
-    qp_.A.rightCols(nc_) = p.G;  // G F_opt = 0 (eq. 14)
+  if (basis_ && nf_ > 0) {  // ‖F_opt‖² = wᵀ NᵀN w
+    qp_.H.bottomRightCorner(nf_, nf_).noalias() +=
+        (s_.regularization * w_f_) * (N_.transpose() * N_);
+  } else if (!basis_) {
+    qp_.H.bottomRightCorner(nc_, nc_).diagonal().array() += s_.regularization * w_f_;
+    if (nc_) qp_.A.rightCols(nc_) = p.G;  // G F_opt = 0 (eq. 14)
   }
   qp_.C.topLeftCorner(kk, nr_) = p.K;
-  qp_.C.topRightCorner(kk, nc_) = p.Yw;
+  if (basis_) {
+    if (nf_ > 0) {
+      YwN_.noalias() = p.Yw * N_;
+      qp_.C.topRightCorner(kk, nf_) = YwN_;
+    }
+  } else {
+    qp_.C.topRightCorner(kk, nc_) = p.Yw;
+  }
   qp_.l.head(kk) = -s_.tau_max - p.gamma0;
   qp_.u.head(kk) = s_.tau_max - p.gamma0;
   if (nc_) {
@@ -86,11 +114,24 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
   return ok;
 }
 
+bool ToOsfTick::internal_basis() {
+  const Matrix& G = params_.G;
+  const Eigen::PartialPivLU<Matrix> lu(G.leftCols(6));
+  if (!(lu.rcond() > 1e-12)) return false;
+  if (nf_ > 0) N_.topRows(6).noalias() = -lu.solve(G.rightCols(nf_));
+  return true;
+}
+
 void ToOsfTick::finish(const Eigen::Ref<const Vector>& x) {
   const auto t0 = Clock::now();
   if (x.size() != nx_) throw std::invalid_argument("to_osf: solution of wrong size");
   rho_ = x.head(nr_);  // x = D x̃: D is 1 on the references, σ on F_opt
-  f_opt_ = x.tail(nc_).cwiseProduct(D_.tail(nc_));
+  if (basis_) {
+    f_opt_.setZero(nc_);
+    if (nf_ > 0) f_opt_.noalias() = N_ * x.tail(nf_).cwiseProduct(D_.tail(nf_));
+  } else {
+    f_opt_ = x.tail(nc_).cwiseProduct(D_.tail(nc_));
+  }
   prev_.setZero(k());
   for (int i = 0; i < levels(); ++i) {
     params_.level_step(i, prev_, rho_.segment(offsets_[i], os_.level_dims[i]), work_);

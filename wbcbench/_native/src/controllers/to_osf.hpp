@@ -12,6 +12,7 @@ struct ToOsfSettings : OsfSettings {
   bool wrench_total = true;     // S_f on the total wrench (else on F_opt only)
   double regularization = 1e-3;
   Matrix Sf;                    // wrench selection (rows kept, 6c)
+  bool internal_basis = true;   // F_opt = N w over a basis of G's null space (else G F_opt = 0)
 };
 
 class ToOsfTick : public OsfTick {
@@ -26,8 +27,13 @@ class ToOsfTick : public OsfTick {
   const Vector& rho() const { return rho_; }  // the optimised task references
 
  private:
+  // N: wbcbench.controllers.to_osf.internal_basis of params_.G; false when there is none
+  bool internal_basis();
+
   ToOsfSettings s_;
-  int nx_ = 0;
+  int nx_ = 0, nf_ = 0;   // variables; F_opt's part of them (c, or c − 6 with a basis)
+  bool basis_ = false;    // this configuration parametrises F_opt by a basis N
+  Matrix N_, YwN_;
   double scale_ = 1.0, w_f_ = 1.0;
   Vector D_, h_task_, rho_, f_opt_, fc_, prev_;
   Matrix Af_, SA_;
