@@ -36,16 +36,28 @@ way. So, on each state both impls solve:
   and their answers agree to at least 1e-5 (measured: 1.5e-6 with quadprog on a wall state
   where the strategies' spread is 1.1e-8).
 
-A backend may fail on a state in one impl and not the other, or at another level: rounding-
-level differences of the data meet its stopping rule differently (PIQP through qpsolvers stops
-at its 250-iteration cap on the zero-torque-energy final QP, whose multipliers reach 2.6e6 and
-which it solves in 660 iterations with a larger cap: which impl stops is decided by rounding;
-DAQP declares a level QP that the levels above leave feasible only to rounding infeasible in
-one impl and not the other). So such a mismatch is allowed, on any number of states, when the
-failure is the backend's own verdict (an iteration cap, infeasibility or numerical trouble
-reported by the backend, qpsolvers' "no solution found", which is how qpsolvers reports
-them, or qpOASES's "QP could not be solved", which it reports when its initial working set
-fails); any other failure in one impl only is an error. Every answer an impl does give is
+A backend may fail on a state in one impl and not the other, or at another level, where its
+stopping rule meets a level QP whose feasible set is thin: the rows held from the levels above
+leave it no interior, so it is feasible only by the hierarchy's widening of its bounds
+(FEAS_TOL × the level's index + the violation carried from above, 1e-9 to 2e-7 of
+1 + |bound|), of the order of the backend's own primal tolerance (1e-9 at tier high). The two
+impls hand the backend the same level QP to rounding (the same null-space bases, ‖ΔH‖ ≤ 1e-14
+relative; the bounds, which carry the slacks held from above, apart by as much as those
+levels' answers: 1e-12 with DAQP, more with an iterative backend), and which impl's data the
+backend calls feasible, or on which its interior-point iterations stall, is then decided by
+rounding (DAQP and ProxQP declare it infeasible, Clarabel ends in InsufficientProgress or
+AlmostSolved, ProxQP at its iteration cap). So such a mismatch is allowed, on any number of
+states, when the failure is the backend's own verdict (an iteration cap, infeasibility or
+numerical trouble reported by the backend, qpsolvers' "no solution found", which is how
+qpsolvers reports them, or qpOASES's "QP could not be solved", which it reports when its
+initial working set fails) and the failing level's QP lies in the band:
+its feasibility margin (:func:`~wbcbench.qp.validity.feasibility_margin`, the largest
+uniform tightening of its bounds, relative to 1 + |bound|, that leaves it feasible) is below
+:func:`feasibility_band` (max(1e-6, 10 × the tier's accuracy), the hierarchy's own tolerance
+for a held row's rounding; measured: every mismatch lies between 3e-9 and 2e-7, while 83 % of
+the level QPs of the states where the impls agree lie above 1e-6; see docs/native.md,
+"Feasibility verdicts");
+any other failure in one impl only is an error. Every answer an impl does give is
 checked in full (the dynamics and torque limits above); a case where no state is solved by
 both impls compares nothing and is reported as skipped, with that reason.
 """
@@ -60,9 +72,12 @@ import pytest
 
 from wbcbench import _native
 from wbcbench.controllers import native
+from wbcbench.controllers.native import frozen
 from wbcbench.dynamics.state import RobotState
-from wbcbench.qp import make_solver
-from wbcbench.qp.hierarchy import accept_tol, solve_hierarchy
+from wbcbench.qp import Problem, QPSolver, make_solver
+from wbcbench.qp.hierarchy import accept_tol, accept_tol_for, solve_hierarchy
+from wbcbench.qp.registry import solver_class
+from wbcbench.qp.validity import feasibility_margin
 
 from .conftest import ANY_TIER_SOLVERS, grounded_state
 from .test_hierarchy import PAST_THE_BOUND, BoundBreaking, random_hierarchy
@@ -215,6 +230,81 @@ BACKEND_VERDICT = re.compile(
 )
 
 
+#: (controller, backend) whose one-impl failures may lie outside :func:`feasibility_band`:
+#: Clarabel on hqp's level QPs ends in AlmostSolved or InsufficientProgress in one impl on
+#: levels with room to spare (measured margins 0.18 to 0.86, a semidefinite Hessian, |z| up to
+#: 2e3, data apart by a null-space rotation or by 4e-6 in the held equalities' right-hand
+#: side), a cause the margin does not measure, not explained yet (docs/native.md)
+OUTSIDE_BAND = {("hqp", "clarabel")}
+
+
+#: the band of feasibility margins inside which the two impls may disagree on whether a step
+#: is feasible, for a backend asked for ``accuracy``: a level QP whose feasible set reaches less
+#: than this (relative to 1 + |bound|, :func:`~wbcbench.qp.validity.feasibility_margin`) inside
+#: its bounds. The same measure as the acceptance of a level's answer
+#: (:func:`~wbcbench.qp.hierarchy.accept_tol_for`: max(1e-6, 10 × accuracy)): a set thinner
+#: than what the hierarchy accepts as a held row's rounding is feasible only to rounding
+def feasibility_band(solver: str) -> float:
+    return accept_tol_for(float(solver_class(solver).accuracy("high")))
+
+
+class QpRecorder:
+    """While active, a copy of every QP a Python solver handle is given, in order (the native
+    ticks' level QPs that C++ solves itself are in their step's ``problems``)."""
+
+    def __init__(self) -> None:
+        self.problems: list[Problem] = []
+        self._solve: Any = None
+
+    def __enter__(self) -> QpRecorder:
+        solve = self._solve = QPSolver.solve
+
+        def recording(handle: QPSolver, problem: Problem, *args: Any, **kwargs: Any) -> Any:
+            self.problems.append(frozen(problem))
+            return solve(handle, problem, *args, **kwargs)
+
+        QPSolver.solve = recording  # type: ignore[method-assign]
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        QPSolver.solve = self._solve  # type: ignore[method-assign]
+
+    def clear(self) -> None:
+        self.problems = []
+
+    def take(self) -> list[Problem]:
+        out, self.problems = self.problems, []
+        return out
+
+
+def failed_level_margins(
+    native: Any, python: Any, native_qps: list[Problem], python_qps: list[Problem]
+) -> tuple[str, dict[str, float]]:
+    """The level named in the failed step's message, and by impl the feasibility margin of the
+    QP that failed: the last QP of that name the failing impl built, and the same attempt (the
+    same count of QPs of that name) in the other impl; an impl that built no such QP is left
+    out."""
+    failed = "native" if not native.ok else "python"
+    message = native.message if failed == "native" else python.message
+    names = re.findall(r"level '([^']+)'", message)
+    level = names[-1] if names else ""
+    qps = {"native": native_qps, "python": python_qps}
+    attempt = sum(p.name == level for p in qps[failed])
+    margins: dict[str, float] = {}
+    for impl in ("native", "python"):
+        mine = [p for p in qps[impl] if p.name == level]
+        if attempt and len(mine) >= attempt:
+            margins[impl] = feasibility_margin(mine[attempt - 1])
+    return level, margins
+
+
+def in_band(native: Any, margins: dict[str, float], solver: str) -> bool:
+    """The failing impl's level QP lies inside :func:`feasibility_band`: feasible, or
+    infeasible, by less than the band."""
+    failed = "native" if not native.ok else "python"
+    return failed in margins and abs(margins[failed]) < feasibility_band(solver)
+
+
 def slacks(diagnostics: dict[str, float]) -> dict[str, float]:
     return {k: v for k, v in diagnostics.items() if k.startswith(("w.", "v.", "slack."))}
 
@@ -257,13 +347,18 @@ def test_native_equals_python(
         q, v = grounded_state(robot, keyframe, frames, rng, q_noise=0.05, v_noise=0.2)
         t = float(rng.uniform(*window))
         a = nat.step(RobotState(robot, q, v), t)
-        b = python.step(RobotState(robot, q, v), t)
+        with QpRecorder() as recorder:
+            b = python.step(RobotState(robot, q, v), t)
         assert {"dynamics", "build", "solve", "crossing", "total"} <= set(a.timings)
         if a.ok != b.ok:
-            # one impl's backend gave up where the other's did not: its own verdict, and the
-            # answer the other impl gave is still checked in full
+            # one impl's backend gave up where the other's did not: its own verdict, on a
+            # level whose feasible set is thinner than the band, and the answer the other impl
+            # gave is still checked in full
             failed, answer = (a, b) if not a.ok else (b, a)
             assert BACKEND_VERDICT.search(failed.message), failed.message
+            level, margins = failed_level_margins(a, b, nat.native_problems(), recorder.problems)
+            if (name, backend) not in OUTSIDE_BAND:
+                assert in_band(a, margins, solver), (failed.message, level, margins)
             assert base_residual(robot, q, v, answer, frames) <= 1e-6
             assert np.all(np.abs(answer.tau) <= nat.ctx.tau_max * (1 + 1e-6) + 1e-6)
             continue

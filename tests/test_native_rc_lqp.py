@@ -22,10 +22,13 @@ solve
   where both took the same branch (the full-model LQP inherits lqp's own spread, up to 1e-3 on
   tocabi_stand_sway).
 
-A backend may fail on a state in one impl and not the other (rounding-level differences of the
-data meet its stopping rule differently), or return a level solution that breaks the wrench
-inequalities or the q̈ limits without saying so (:func:`within_limits`), or one that the step's
-wrench check rejects in one impl only (a re-plan there): at most two of the four states.
+A backend may fail on a state in one impl and not the other, on a level QP whose feasibility
+margin lies in the band of :mod:`tests.test_native_hierarchy` (rounding-level differences of
+the data meet its stopping rule differently on a level feasible only by the hierarchy's
+widening; asserted for every such state). It may also return a level solution that breaks
+the wrench inequalities or the q̈ limits without saying so (:func:`within_limits`), or one
+that the step's wrench check rejects in one impl only (a re-plan there): at most two of the
+four states.
 
 With ``coupling_priority``, LQP 1's re-solve is nearly degenerate and its optimum not unique:
 each impl's answer is checked for what the step promises, the slacks and τ not against the
@@ -50,7 +53,14 @@ from wbcbench.scenarios.load import load_scenario
 
 from .conftest import ANY_TIER_SOLVERS, grounded_state
 from .test_native_equality import relative
-from .test_native_hierarchy import ACTIVE_SET, base_residual, slacks
+from .test_native_hierarchy import (
+    ACTIVE_SET,
+    QpRecorder,
+    base_residual,
+    failed_level_margins,
+    in_band,
+    slacks,
+)
 
 pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
 
@@ -110,7 +120,7 @@ def controllers(case: str, solver: str, config: dict[str, Any]) -> dict[str, Any
         ("native", "native", {}),
         ("spread", "python", {"strategy": other}),
     ):
-        ctx = scenario_context(loaded, robot, solver=solver, tier="high")
+        ctx = scenario_context(loaded, robot, solver=solver, tier="high", keep_problems=True)
         out[key] = make_controller(CONTROLLER, ctx, {**config, **extra, "impl": impl})
     return out
 
@@ -201,11 +211,14 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
         q, v = grounded_state(robot, keyframe, frames, rng, q_noise=0.05, v_noise=0.2)
         t = float(rng.uniform(*window))
         a = nat.step(RobotState(robot, q, v), t)
-        b = python.step(RobotState(robot, q, v), t)
+        with QpRecorder() as recorder:
+            b = python.step(RobotState(robot, q, v), t)
         assert {"dynamics", "build", "solve", "crossing", "total"} <= set(a.timings)
         if a.ok != b.ok:
-            mismatched += 1
-            assert mismatched <= 2, (a.message, b.message)
+            # a backend's verdict on a level QP whose feasible set is thinner than the band
+            # (see tests.test_native_hierarchy)
+            level, margins = failed_level_margins(a, b, nat.native_problems(), recorder.problems)
+            assert in_band(a, margins, solver), (a.message, b.message, level, margins)
             continue
         if not b.ok:
             assert a.message and b.message

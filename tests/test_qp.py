@@ -12,7 +12,7 @@ import wbcbench.qp as qp
 from wbcbench.errors import SolverError, UnknownNameError, UnofferedChoiceError, WbcBenchError
 from wbcbench.qp import Problem, Solution, SolutionStatus, check_solution, make_solver
 from wbcbench.qp.examples import random_qp, wbc_like_qp
-from wbcbench.qp.validity import validated
+from wbcbench.qp.validity import feasibility_margin, validated
 
 
 def test_public_api() -> None:
@@ -150,6 +150,24 @@ def test_distance_to_reference() -> None:
     v = check_solution(p, sol, 1e-8)
     assert v.distance_to(sol.x) == 0.0
     assert v.distance_to(sol.x + 0.25) == pytest.approx(0.25)
+
+
+def test_feasibility_margin() -> None:
+    """The largest t with every finite bound met with t (1 + |bound|) to spare: on 0 ≤ x ≤ 1,
+    t ≤ x ≤ 1 − 2t gives 1/3; on 2 ≤ x ≤ 1 (infeasible), 2 + 3t ≤ x ≤ 1 − 2t gives −1/5; an
+    equality written as two bounds leaves 0; with A x = b the bounds are met on that line."""
+    H, g = np.eye(1), np.zeros(1)
+    assert feasibility_margin(Problem(H, g, lb=np.zeros(1), ub=np.ones(1))) == pytest.approx(1 / 3)
+    infeasible = Problem(H, g, C=np.ones((1, 1)), l=np.array([2.0]), u=np.array([1.0]))
+    assert feasibility_margin(infeasible) == pytest.approx(-1 / 5)
+    pinned = Problem(H, g, C=np.ones((1, 1)), l=np.array([0.5]), u=np.array([0.5]))
+    assert abs(feasibility_margin(pinned)) <= 1e-12
+    assert feasibility_margin(Problem(H, g)) == 1.0  # no finite bound: the cap
+    # x0 + x1 = 1 with 0 ≤ x ≤ 1: x = (½, ½) leaves ½ − t ≥ t and ½ + 2t ≤ 1, so t = 1/4
+    line = Problem(
+        np.eye(2), np.zeros(2), A=np.ones((1, 2)), b=np.ones(1), lb=np.zeros(2), ub=np.ones(2)
+    )
+    assert feasibility_margin(line) == pytest.approx(1 / 4)
 
 
 def test_check_solution_without_x() -> None:

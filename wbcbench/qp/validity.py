@@ -229,3 +229,56 @@ def relative_kkt(problem: Problem, sol: Solution) -> tuple[float, float | None, 
     terms = [float(x @ Hx), float(problem.g @ x), float(problem.b @ y), d.support]
     gap = abs(d.gap) / (1.0 + max(abs(t) for t in terms))
     return prim, dual, gap
+
+
+def feasibility_margin(problem: Problem) -> float:
+    """How far inside its bounds the QP's feasible set reaches: the largest t ≤ 1 for which some
+    x meets ``A x = b`` and every finite bound with ``t (1 + |bound|)`` to spare
+    (``l + t (1 + |l|) ≤ C x ≤ u − t (1 + |u|)``, the same for ``lb``, ``ub``), from one LP
+    (HiGHS through SciPy).
+
+    The units are those of the widening of :mod:`wbcbench.qp.hierarchy` (``FEAS_TOL``): a
+    level QP whose held rows leave no interior has a margin equal to its widening (about 1e-9
+    per level), a level with room to spare one of order 1; negative: infeasible by that much
+    (the bounds must be widened by ``−t (1 + |bound|)`` to admit an x). 1 with no finite
+    bound, NaN when the LP solver fails. The LP is solved to 1e-10: margins below about 1e-10
+    are not resolved.
+    """
+    from scipy.optimize import linprog
+
+    n = problem.n
+    blocks = [(problem.C, problem.l, problem.u)]
+    if problem.has_box:
+        lower = problem.lb if problem.lb is not None else np.full(n, -np.inf)
+        upper = problem.ub if problem.ub is not None else np.full(n, np.inf)
+        blocks.append((np.eye(n), lower, upper))
+    rows: list[Array] = []
+    rhs: list[Array] = []
+    for C, lo, hi in blocks:
+        up, down = np.isfinite(hi), np.isfinite(lo)
+        # C x + t (1 + |u|) ≤ u and −C x + t (1 + |l|) ≤ −l over (x, t)
+        rows += [np.hstack([C[up], 1.0 + np.abs(hi[up, None])])]
+        rows += [np.hstack([-C[down], 1.0 + np.abs(lo[down, None])])]
+        rhs += [hi[up], -lo[down]]
+    A_ub = np.vstack(rows) if rows else np.zeros((0, n + 1))
+    if not A_ub.shape[0]:
+        return 1.0
+    cost = np.zeros(n + 1)
+    cost[-1] = -1.0  # maximise t
+    A_eq = np.hstack([problem.A, np.zeros((problem.n_eq, 1))]) if problem.n_eq else None
+    tight = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+    # HiGHS's presolve can end in an unknown status at tight tolerances on these thin sets
+    for options in (tight, {**tight, "presolve": False}, {}):
+        res = linprog(
+            cost,
+            A_ub=A_ub,
+            b_ub=np.concatenate(rhs),
+            A_eq=A_eq,
+            b_eq=problem.b if problem.n_eq else None,
+            bounds=[(None, None)] * n + [(None, 1.0)],
+            method="highs",
+            options=options,
+        )
+        if res.status == 0:
+            return float(-res.fun)
+    return float("nan")
