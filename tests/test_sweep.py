@@ -256,6 +256,8 @@ def test_a_solver_that_raises_or_lies_becomes_a_failure_row(
         return Solution(SolutionStatus.SOLVED, x=np.zeros(problem.n), message="optimal")
 
     monkeypatch.setattr(DAQPSolver, "_solve_fresh", raises)
+    # (the crash is injected into the Python handle: its C++ counterpart would bypass it)
+    monkeypatch.setattr(DAQPSolver, "native_solver", lambda self: None)
     monkeypatch.setattr(QuadprogSolver, "_solve_fresh", lies)
     text = TINY.format(tracking_solvers="daqp, proxqp", timing_solvers="quadprog, proxqp")
     text = text.replace("duration=0.06", "duration=0.05").replace("0.0, 0.06]", "0.0, 0.05]") + (
@@ -349,6 +351,9 @@ def test_a_closed_loop_run_rejects_a_qp_reported_solved_that_is_not(
             if sol.success and self.calls % 3 == 1:
                 return replace(sol, x=sol.x + 1.0)
             return sol
+
+        def native_solver(self):
+            return None  # the lie is told here: a C++ counterpart would bypass it
 
         def __getattr__(self, name):
             return getattr(self.inner, name)
