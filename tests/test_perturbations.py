@@ -391,10 +391,10 @@ def test_degradation_names_who_falls_first_or_who_degrades_most() -> None:
     first = degradation_falls_first(table).set_index("falls first")
     assert first.loc["b", "at"] == "2"
     assert first.loc["b", "why (the run's message)"] == "failed: b fell at 2"
-    # nobody falls under a mass error: the one whose error grows most is named
+    # nobody falls under a mass error: the one whose error grows most [mm] is named
     assert first.loc["none", "at"] == "none up to 20"
     assert first.loc["none", "why (the run's message)"] == (
-        "every run ok; degrades most: b (6× its unperturbed error at 20)"
+        "every run ok; degrades most: b (from 0.2 to 1.2 mm at 20)"
     )
     grid = degradation_grid(table, "delay").set_index("controller")
     assert list(grid.columns[2:]) == ["0", "2", "5"]

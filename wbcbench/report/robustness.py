@@ -125,8 +125,8 @@ def degradation_grid(table: pd.DataFrame, axis: str) -> pd.DataFrame:
 
 def degradation_falls_first(table: pd.DataFrame) -> pd.DataFrame:
     """Per scenario × solver × axis: the controller(s) whose run falls or fails at the smallest
-    perturbation, with the run's own message; when none does, the one whose error at the
-    largest perturbation is the largest multiple of its unperturbed error (degrades most)."""
+    perturbation, with the run's own message; when none does, the one whose error grows most
+    [mm] from its unperturbed run to the largest perturbation (degrades most)."""
     from wbcbench.bench.push_recovery import WHY
 
     if table.empty:
@@ -160,14 +160,13 @@ def degradation_falls_first(table: pd.DataFrame) -> pd.DataFrame:
             )
             continue
         top = float(d["value"].max())
-        ratio: dict[str, float] = {}
+        growth: dict[str, tuple[float, float]] = {}  # controller → (unperturbed, largest) [m]
         for name, c in d.groupby("controller", sort=False):
-            controller = str(name)
             base = c.loc[c["value"] == 0, "err_mean"]
             worst = c.loc[c["value"] == top, "err_mean"]
-            if not base.empty and not worst.empty and float(base.iloc[0]) > 0:
-                ratio[controller] = float(worst.iloc[0]) / float(base.iloc[0])
-        most = max(ratio, key=lambda k: ratio[k]) if ratio else ""
+            if not base.empty and not worst.empty:
+                growth[str(name)] = (float(base.iloc[0]), float(worst.iloc[0]))
+        most = max(growth, key=lambda k: growth[k][1] - growth[k][0]) if growth else ""
         out.append(
             {
                 "scenario": scenario,
@@ -177,8 +176,8 @@ def degradation_falls_first(table: pd.DataFrame) -> pd.DataFrame:
                 "at": f"none up to {top:g}",
                 "controllers compared": n,
                 WHY: (
-                    f"every run ok; degrades most: {most} ({ratio[most]:.3g}× its "
-                    f"unperturbed error at {top:g})"
+                    f"every run ok; degrades most: {most} (from {1e3 * growth[most][0]:.3g} to "
+                    f"{1e3 * growth[most][1]:.3g} mm at {top:g})"
                     if most
                     else "every run ok"
                 ),
