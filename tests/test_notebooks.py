@@ -16,7 +16,7 @@ NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 REFERENCE = ROOT / "results" / "reference"
 
 
-def test_there_is_a_notebook_per_paper_and_one_for_the_solvers() -> None:
+def test_there_is_a_notebook_per_paper_one_for_the_solvers_and_one_for_robustness() -> None:
     names = {p.name for p in NOTEBOOKS}
     assert {
         "to_osf_lee2021.ipynb",
@@ -24,6 +24,7 @@ def test_there_is_a_notebook_per_paper_and_one_for_the_solvers() -> None:
         "rc_lqp_ahn.ipynb",
         "rqr_hqp.ipynb",
         "solver_comparison.ipynb",
+        "robustness.ipynb",
     } <= names
 
 

@@ -321,3 +321,81 @@ def test_each_perturbed_run_is_placed_on_one_degradation_axis() -> None:
     # two axes at once, or an inertia error apart from the mass: on no axis
     assert perturbation_axis(settings({"sensing": {**noise, "delay": 1}})) is None
     assert perturbation_axis(settings({"model": {"mass_scale": 1.1, "inertia_scale": 1}})) is None
+
+
+def test_the_controller_that_falls_first_is_named_with_its_runs_message() -> None:
+    import pandas as pd
+
+    from wbcbench.bench.push_recovery import falls_first, push_table
+
+    def bracket(controller: str, d: str, lo: float, hi: float, why: str) -> dict:
+        return {"scenario": "s", "controller": controller, "solver": "daqp", "impl": "native",
+                "direction": d, "survived_Ns": lo, "failed_Ns": hi, "failure": why}  # fmt: skip
+
+    rows = pd.DataFrame(
+        [
+            bracket("a", "+y", 20.0, 25.0, "fell: contact 'l_sole' moved 21 mm"),
+            bracket("b", "+y", 10.0, 15.0, "failed: 20 failed ticks in a row"),
+            bracket("a", "+x", 10.0, 15.0, "fell: base at 0.4 m"),
+            bracket("b", "+x", 10.0, 15.0, "CoM 30.0 mm from its reference"),
+            bracket("a", "-x", 80.0, float("nan"), ""),
+            bracket("b", "-x", float("nan"), 0.0, "fell: unpushed"),
+            bracket("a", "-y", 80.0, float("nan"), ""),
+        ]
+    )
+    first = falls_first(rows).set_index("direction")
+    assert first.loc["+y", "falls first"] == "b"
+    assert first.loc["+y", "at [N·s]"] == "15"
+    assert first.loc["+y", "why (the run's message)"] == "failed: 20 failed ticks in a row"
+    # a tie names both, each with its own message
+    assert first.loc["+x", "falls first"] == "a, b"
+    assert first.loc["+x", "why (the run's message)"] == (
+        "a: fell: base at 0.4 m; b: CoM 30.0 mm from its reference"
+    )
+    # a controller that falls unpushed falls first; no one fails in -y: no row
+    assert first.loc["-x", "falls first"] == "b" and first.loc["-x", "at [N·s]"] == "0"
+    assert "-y" not in first.index
+    # the table's directions in the study's order, each cell `J [survived, failed)`
+    table = push_table(rows)
+    assert list(table.columns[4:]) == ["+x", "-x", "+y", "-y"]
+    assert table.set_index("controller").loc["b", "-x"] == "falls unpushed"
+    assert table.set_index("controller").loc["a", "-x"] == "≥ 80"
+    assert table.set_index("controller").loc["b", "-y"] == "not run"
+
+
+def test_degradation_names_who_falls_first_or_who_degrades_most() -> None:
+    import pandas as pd
+
+    from wbcbench.report.robustness import degradation_falls_first, degradation_grid
+
+    def run(controller: str, axis: str, value: float, err: float, status: str = "ok") -> dict:
+        message = "" if status == "ok" else f"{controller} fell at {value:g}"
+        return {"scenario": "s", "controller": controller, "solver": "daqp", "duration_s": 3.0,
+                "axis": axis, "value": value, "err_mean": err, "status": status,
+                "message": message}  # fmt: skip
+
+    table = pd.DataFrame(
+        [
+            run("a", "delay", 0, 1e-4),
+            run("a", "delay", 2, 2e-4),
+            run("a", "delay", 5, 1e-3, "fell"),
+            run("b", "delay", 0, 1e-4),
+            run("b", "delay", 2, 5e-4, "failed"),
+            run("b", "delay", 5, 2e-3, "fell"),
+            run("a", "mass", 0, 1e-4),
+            run("a", "mass", 20, 4e-4),
+            run("b", "mass", 0, 2e-4),
+            run("b", "mass", 20, 1.2e-3),
+        ]
+    )
+    first = degradation_falls_first(table).set_index("falls first")
+    assert first.loc["b", "at"] == "2"
+    assert first.loc["b", "why (the run's message)"] == "failed: b fell at 2"
+    # nobody falls under a mass error: the one whose error grows most [mm] is named
+    assert first.loc["none", "at"] == "none up to 20"
+    assert first.loc["none", "why (the run's message)"] == (
+        "every run ok; degrades most: b (from 0.2 to 1.2 mm at 20)"
+    )
+    grid = degradation_grid(table, "delay").set_index("controller")
+    assert list(grid.columns[2:]) == ["0", "2", "5"]
+    assert grid.loc["a", "2"] == "0.2" and grid.loc["b", "2"] == "failed"

@@ -102,3 +102,22 @@ def test_families_group_the_papers_scenarios() -> None:
     assert family_of("lee2021access_s3_conflict") == family_of("lee2021access_table3")
     assert family_of("talos_stand_sway") == family_of("g1_stand_sway") == "standing sway"
     assert family_of("my_scenario") == "my_scenario"
+
+
+def test_a_perturbed_run_is_no_evidence_of_accuracy_or_of_a_fall(tmp_path: Path) -> None:
+    """A robustness run (its settings state perturbations) that fell, or tracked better than
+    all, changes no pick: it is judged in the robustness tables."""
+    import json
+
+    base = synthetic(tmp_path)
+    perturbed = {
+        **_run("r_p", "tracking", "hqp", "daqp", status="fell"),
+        "settings": json.dumps({"perturbations": {"sensing": {"delay": 5}}}),
+    }
+    runs = pd.concat([base.runs.assign(settings="{}"), pd.DataFrame([perturbed])])
+    metrics = pd.concat([base.metrics, pd.DataFrame([_metric("r_p", "com", "err_mean", 1e-12)])])
+    row = recommendations(Results(tmp_path, runs, metrics, base.provenance)).iloc[0]
+    expected = recommendations(base).iloc[0]
+    assert row["fastest (p99 within budget)"] == expected["fastest (p99 within budget)"]
+    assert row["most accurate"] == expected["most accurate"]
+    assert "`hqp`" not in row["caveats"].split("fell on a scenario:")[-1]

@@ -31,6 +31,19 @@ from wbcbench.errors import WbcBenchError
 from wbcbench.runs import Planner, Run
 from wbcbench.sim.closed_loop import RunResult, run_closed_loop
 
+__all__ = [
+    "DIRECTIONS",
+    "WHY",
+    "PushBracket",
+    "PushStudy",
+    "falls_first",
+    "largest_push",
+    "push_table",
+    "read_push_rows",
+    "run_push_study",
+    "write_push_table",
+]
+
 #: the push directions a study can name: unit vectors in the world's horizontal plane
 DIRECTIONS: dict[str, tuple[float, float, float]] = {
     "+x": (1.0, 0.0, 0.0),
@@ -40,6 +53,9 @@ DIRECTIONS: dict[str, tuple[float, float, float]] = {
 }
 
 CSV = "push_recovery.csv"
+
+#: the column of the "falls first" tables that quotes the failed run's own message
+WHY = "why (the run's message)"
 
 
 @dataclass(frozen=True)
@@ -260,17 +276,55 @@ def push_table(rows: pd.DataFrame) -> pd.DataFrame:
             bracket_text(s, f) for s, f in zip(rows["survived_Ns"], rows["failed_Ns"], strict=True)
         ]
     )
-    return (
-        rows.pivot_table(
-            index=["scenario", "controller", "solver", "impl"],
-            columns="direction",
-            values="cell",
-            aggfunc="last",
-        )
-        .reset_index()
-        .rename_axis(columns=None)
-        .fillna("not run")
+    table = rows.pivot_table(
+        index=["scenario", "controller", "solver", "impl"],
+        columns="direction",
+        values="cell",
+        aggfunc="last",
+        sort=False,
     )
+    table = table[[d for d in DIRECTIONS if d in table.columns]]
+    return table.reset_index().rename_axis(columns=None).fillna("not run")
+
+
+def falls_first(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per scenario × solver × direction, the controller(s) with the smallest failed impulse
+    [N·s] (a controller that falls unpushed fails at 0; one that survived ``max_impulse`` never
+    fails), with why that push failed (the run's own message); rows where every controller
+    survived the largest push are left out."""
+    if rows.empty:
+        return pd.DataFrame()
+    out = []
+    for (scenario, solver, direction), group in rows.groupby(
+        ["scenario", "solver", "direction"], sort=False
+    ):
+        failed = group[group["failed_Ns"].notna()]
+        if failed.empty:
+            continue
+        at = float(failed["failed_Ns"].min())
+        first = failed[failed["failed_Ns"] == at]
+        n = group["controller"].nunique()
+        out.append(
+            {
+                "scenario": scenario,
+                "solver": solver,
+                "direction": direction,
+                "falls first": ", ".join(first["controller"]),
+                "at [N·s]": f"{at:g}",
+                "controllers compared": n,
+                WHY: "; ".join(
+                    f"{c}: {w}" if len(first) > 1 else str(w)
+                    for c, w in zip(first["controller"], first["failure"], strict=True)
+                ),
+            }
+        )
+    return pd.DataFrame(out)
+
+
+def read_push_rows(folder: str | Path) -> pd.DataFrame:
+    """The study's brackets stored in ``folder`` (empty when it holds no push study)."""
+    path = Path(folder) / CSV
+    return pd.read_csv(path) if path.exists() else pd.DataFrame()
 
 
 def write_push_table(out: Path) -> Path | None:
@@ -295,9 +349,19 @@ def write_push_table(out: Path) -> Path | None:
         "",
         f"Wall time of the study: {rows['wall_time_s'].sum():.0f} s.",
         "",
-        "## Why the smallest failed push failed",
-        "",
     ]
+    first_falls = falls_first(rows)
+    if not first_falls.empty:
+        lines += [
+            "## Which controller falls first",
+            "",
+            "Per robot, solver and direction, the controller whose smallest failed push is the "
+            "smallest (all of them on a tie), and why that push failed, in the run's own words.",
+            "",
+            first_falls.to_markdown(index=False),
+            "",
+        ]
+    lines += ["## Why the smallest failed push failed", ""]
     for _, r in rows.iterrows():
         if isinstance(r["failure"], str) and r["failure"]:
             lines.append(

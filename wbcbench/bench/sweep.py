@@ -791,7 +791,10 @@ def _push_targets(
                 planner.run(loaded, controller, solver)
                 if (name, controller, solver, body) not in out:
                     out.append((name, controller, solver, body))
-    return out
+    # controller by controller (in the study's order, each on every scenario), so that an
+    # interrupted study holds its first controllers on every robot
+    order = [c for c, _ in controllers]
+    return sorted(out, key=lambda t: order.index(t[1]))
 
 
 def push_study(spec: PushRecoverySpec) -> Any:

@@ -18,6 +18,7 @@ from wbcbench.report.load import Results, load_results
 __all__ = [
     "notebook_results",
     "paper_verdicts",
+    "robustness_conclusion",
     "solver_conclusion",
     "verdict_conclusion",
     "verdict_markdown",
@@ -110,4 +111,55 @@ def solver_conclusion(summary: pd.DataFrame) -> str:
             )
             + ": trust their status only with the check on."
         )
+    return "\n\n".join(lines)
+
+
+def robustness_conclusion(push: pd.DataFrame, degradation: pd.DataFrame) -> str:
+    """A short conclusion from a push-recovery study's brackets
+    (:func:`wbcbench.bench.push_recovery.read_push_rows`) and a degradation table
+    (:func:`wbcbench.report.robustness.degradation_table`): per robot and solver, which
+    controller survives the largest push in its weakest direction and which falls first (with
+    the run's message); per perturbation, who falls first or who degrades most."""
+    from wbcbench.bench.push_recovery import WHY, falls_first
+    from wbcbench.report.robustness import degradation_falls_first
+
+    lines = []
+    if push.empty:
+        lines.append("No push-recovery study in these results.")
+    for (scenario, solver), rows in push.groupby(["scenario", "solver"], sort=False):
+        # a controller's weakest direction: the smallest impulse it survived among those run
+        weakest = rows.groupby("controller", sort=False)["survived_Ns"].min()
+        directions = rows["direction"].nunique()
+        top = weakest.max()
+        best = [f"`{c}`" for c, j in weakest.items() if j == top]
+        text = (
+            f"**{scenario}, {solver}**: of {len(weakest)} controllers, "
+            f"{' and '.join(best)} {'survive' if len(best) > 1 else 'survives'} the largest "
+            f"push in every one of the {directions} directions run ({top:g} N·s)"
+        )
+        first = falls_first(rows)
+        if not first.empty:
+            worst = first.iloc[int(first["at [N·s]"].astype(float).to_numpy().argmin())]
+            names = worst["falls first"].split(", ")
+            text += (
+                f"; the first to fall {'are' if len(names) > 1 else 'is'} "
+                + " and ".join(f"`{n}`" for n in names)
+                + f", at {worst['at [N·s]']} N·s pushed {worst['direction']}: {worst[WHY]}"
+            )
+        lines.append(text + ".")
+    if degradation.empty:
+        lines.append("No degradation runs in these results.")
+    else:
+        for _, r in degradation_falls_first(degradation).iterrows():
+            what = r["perturbation"].split(" [")[0]
+            where = f"**{what[0].upper()}{what[1:]}** ({r['scenario']}, {r['solver']}, "
+            where += f"{r['controllers compared']} controllers)"
+            if r["falls first"] == "none":
+                largest = r["at"].removeprefix("none up to ")
+                lines.append(
+                    f"{where}: none falls up to {largest}, the largest size run; "
+                    f"{r[WHY].removeprefix('every run ok; ')}."
+                )
+            else:
+                lines.append(f"{where}: `{r['falls first']}` falls first, at {r['at']}: {r[WHY]}.")
     return "\n\n".join(lines)

@@ -6,7 +6,8 @@ control budget, the most accurate and the most robust, each with its numbers and
   the whole step must be within the control period (1 / ``control_rate``) on every scenario of
   the family the combination was timed on; among the combinations timed on the most scenarios,
   the smallest median of the per-scenario median steps [µs];
-* **most accurate**: closed-loop tracking runs (``kind = tracking``); per scenario and task, each
+* **most accurate**: closed-loop tracking runs (``kind = tracking``) without perturbations
+  (those are the robustness study's); per scenario and task, each
   combination's mean error is divided by the best combination's on that task, and the
   combination with the smallest geometric mean of those ratios over the family wins (1.0 = best
   on every task). A combination that fell on a scenario of the family is ranked after those
@@ -299,6 +300,10 @@ def recommendations(res: Results | str | Path) -> pd.DataFrame:
     for (robot, family), g in runs.groupby(["robot", "family"]):
         scenarios = set(g["scenario"].astype(str))
         tracking = g[g["kind"] == "tracking"]
+        if "settings" in tracking:
+            # a perturbed run measures robustness (wbcbench.report.robustness), not accuracy
+            perturbed = tracking["settings"].fillna("").astype(str).str.contains('"perturbations"')
+            tracking = tracking[~perturbed]
         fell = set(tracking.loc[tracking["status"] != "ok", "controller"].astype(str))
         fastest, fast_caveat = _fastest(res, g[g["kind"] == "timing"], fell)
         accurate, acc_caveat = _accurate(res, tracking)

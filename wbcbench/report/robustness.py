@@ -23,6 +23,18 @@ import pandas as pd
 
 from wbcbench.report.load import Results, load_results
 
+__all__ = [
+    "AXES",
+    "ENCODER_Q_STD",
+    "ENCODER_V_STD",
+    "degradation_falls_first",
+    "degradation_figure",
+    "degradation_grid",
+    "degradation_table",
+    "perturbation_axis",
+    "write_robustness",
+]
+
 #: a typical joint encoder: a 17-bit absolute encoder's quantisation noise (2π / 2¹⁷ / √12)
 #: [rad], and that of its backward difference at 1 kHz (√2 × the former / 1 ms) [rad/s]
 ENCODER_Q_STD = 2 * np.pi / 2**17 / np.sqrt(12)
@@ -89,17 +101,107 @@ def degradation_table(res: Results, task: str = "com") -> pd.DataFrame:
     return out.drop_duplicates([*group, "axis", "value"], keep="last")
 
 
+def degradation_grid(table: pd.DataFrame, axis: str) -> pd.DataFrame:
+    """One axis of :func:`degradation_table` as a grid: a row per scenario × controller ×
+    solver, a column per perturbation size, each cell the mean error [mm] or how the run
+    ended when it was not ``ok``."""
+    d = table[table["axis"] == axis]
+    if d.empty:
+        return pd.DataFrame()
+    cell = [
+        f"{1e3 * e:.3g}" if status == "ok" else str(status)
+        for e, status in zip(d["err_mean"], d["status"], strict=True)
+    ]
+    grid = d.assign(cell=cell).pivot_table(
+        index=["scenario", "controller", "solver"],
+        columns="value",
+        values="cell",
+        aggfunc="last",
+        sort=False,
+    )
+    grid.columns = [f"{v:g}" for v in grid.columns]
+    return grid.reset_index().fillna("not run")
+
+
+def degradation_falls_first(table: pd.DataFrame) -> pd.DataFrame:
+    """Per scenario × solver × axis: the controller(s) whose run falls or fails at the smallest
+    perturbation, with the run's own message; when none does, the one whose error grows most
+    [mm] from its unperturbed run to the largest perturbation (degrades most)."""
+    from wbcbench.bench.push_recovery import WHY
+
+    if table.empty:
+        return pd.DataFrame()
+    out = []
+    order = {axis: k for k, axis in enumerate(AXES)}
+    table = table.sort_values("axis", key=lambda a: a.map(order), kind="stable")
+    for key, d in table.groupby(["scenario", "solver", "axis"], sort=False):
+        scenario, solver, axis = (str(k) for k in key)
+        bad = d[d["status"] != "ok"]
+        n = d["controller"].nunique()
+        if not bad.empty:
+            at = float(bad["value"].min())
+            first = bad[bad["value"] == at].drop_duplicates("controller")
+            many = len(first) > 1
+            out.append(
+                {
+                    "scenario": scenario,
+                    "solver": solver,
+                    "perturbation": AXES[axis],
+                    "falls first": ", ".join(first["controller"]),
+                    "at": f"{at:g}",
+                    "controllers compared": n,
+                    WHY: "; ".join(
+                        f"{c}: {st}: {m}" if many else f"{st}: {m}"
+                        for c, st, m in zip(
+                            first["controller"], first["status"], first["message"], strict=True
+                        )
+                    ),
+                }
+            )
+            continue
+        top = float(d["value"].max())
+        growth: dict[str, tuple[float, float]] = {}  # controller → (unperturbed, largest) [m]
+        for name, c in d.groupby("controller", sort=False):
+            base = c.loc[c["value"] == 0, "err_mean"]
+            worst = c.loc[c["value"] == top, "err_mean"]
+            if not base.empty and not worst.empty:
+                growth[str(name)] = (float(base.iloc[0]), float(worst.iloc[0]))
+        most = max(growth, key=lambda k: growth[k][1] - growth[k][0]) if growth else ""
+        out.append(
+            {
+                "scenario": scenario,
+                "solver": solver,
+                "perturbation": AXES[axis],
+                "falls first": "none",
+                "at": f"none up to {top:g}",
+                "controllers compared": n,
+                WHY: (
+                    f"every run ok; degrades most: {most} (from {1e3 * growth[most][0]:.3g} to "
+                    f"{1e3 * growth[most][1]:.3g} mm at {top:g})"
+                    if most
+                    else "every run ok"
+                ),
+            }
+        )
+    return pd.DataFrame(out)
+
+
 def degradation_figure(table: pd.DataFrame, out: Path, task: str = "com") -> list[Path]:
     """One panel per axis: the task's mean error against the perturbation's size, one line per
-    controller (solver); a run that fell or failed is a cross at the top of its panel."""
+    controller (solver), each with its own colour and marker (one legend under the panels); a
+    run that fell or failed is a cross of its colour above the panel's curves."""
     if table.empty:
         return []
     axes_present = [a for a in AXES if a in set(table["axis"])]
-    fig, axes = plt.subplots(1, len(axes_present), figsize=(4.2 * len(axes_present), 3.6))
+    fig, axes = plt.subplots(1, len(axes_present), figsize=(4.6 * len(axes_present), 4.4))
     axes = np.atleast_1d(axes)
-    series: list[tuple[str, str, str]] = sorted(
-        {(str(a), str(b), str(c)) for a, b, c in table[["scenario", "controller", "solver"]].values}
+    series: list[tuple[str, str, str]] = list(
+        dict.fromkeys(
+            (str(a), str(b), str(c))
+            for a, b, c in table[["scenario", "controller", "solver"]].values
+        )
     )
+    markers = "osD^vP*Xh<>p"
     for ax, axis in zip(axes, axes_present, strict=True):
         d = table[table["axis"] == axis]
         top = 1e3 * float(np.nanmax(d["err_mean"])) if d["err_mean"].notna().any() else 1.0
@@ -111,21 +213,29 @@ def degradation_figure(table: pd.DataFrame, out: Path, task: str = "com") -> lis
                 continue
             color = plt.get_cmap("tab10")(k % 10)
             ok = s[s["status"] == "ok"]
-            ax.plot(ok["value"], 1e3 * ok["err_mean"], "o-", color=color, ms=4,
-                    label=f"{controller} ({solver})")  # fmt: skip
+            style = {"marker": markers[k % len(markers)], "ms": 5, "lw": 1.4, "alpha": 0.85}
+            label = f"{controller} ({solver})"
+            ax.plot(ok["value"], 1e3 * ok["err_mean"], "-", color=color, label=label, **style)
             bad = s[s["status"] != "ok"]
             if not bad.empty:
-                ax.plot(bad["value"], [1.3 * top] * len(bad), "x", color=color, ms=8, mew=2)
+                # the crosses of each controller on a row of their own above the curves
+                y = top * 1.6 * 1.35**k
+                ax.plot(bad["value"], [y] * len(bad), "x", color=color, ms=8, mew=2)
         ax.set_xlabel(AXES[axis])
         ax.set_ylabel(f"{task} mean error [mm]")
         ax.set_yscale("log")
         ax.grid(True, which="both", alpha=0.3)
     scenarios = ", ".join(sorted(set(table["scenario"])))
-    fig.suptitle(f"Tracking degradation on {scenarios} (x: fell or failed)", fontsize=10)
-    handles, labels = axes[0].get_legend_handles_labels()
+    fig.suptitle(f"Tracking degradation on {scenarios} (×: the run fell or failed)", fontsize=11)
+    handles, labels = [], []
+    for ax in axes:
+        for h, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            if label not in labels:
+                handles.append(h)
+                labels.append(label)
     if handles:
-        axes[-1].legend(handles, labels, fontsize=7, loc="best")
-    fig.tight_layout()
+        fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 6), fontsize=9)
+    fig.tight_layout(rect=(0, 0.09 if handles else 0, 1, 1))
     out.mkdir(parents=True, exist_ok=True)
     paths = [out / "degradation.png", out / "degradation.svg"]
     for p in paths:
@@ -148,18 +258,28 @@ def write_robustness(folder: str | Path) -> list[Path]:
     table = degradation_table(res)
     if table.empty:
         return written
-    shown = table.assign(
-        err_mean_mm=1e3 * table["err_mean"], message=table["message"].fillna("")
-    ).drop(columns=["err_mean"])
     text = [
         "# Tracking degradation",
         "",
         "Mean CoM error [mm] over each run's window, measured on the simulated robot, against "
         "the controller's mass error [%], sensing noise [× a typical encoder's: "
         f"{ENCODER_Q_STD:.3g} rad, {ENCODER_V_STD:.3g} rad/s] and delay [control ticks]. "
-        "A run without perturbations is the point at 0 of each axis.",
+        "A run without perturbations is the point at 0 of each axis; a run that did not end "
+        "`ok` shows how it ended (its message is in the runs table, and below for the first).",
         "",
-        shown.to_markdown(index=False, floatfmt=".4g"),
+    ]
+    for axis, title in AXES.items():
+        grid = degradation_grid(table, axis)
+        if not grid.empty:
+            text += [f"## {title[0].upper()}{title[1:]}", "", grid.to_markdown(index=False), ""]
+    first = degradation_falls_first(table)
+    text += [
+        "## Which controller falls first",
+        "",
+        "Per perturbation, the controller whose run falls or fails at the smallest size, and "
+        "why, in the run's own words.",
+        "",
+        first.to_markdown(index=False),
         "",
     ]
     path = folder / "tables" / "degradation.md"
