@@ -45,7 +45,12 @@ from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.metrics.consistency import dc_error, hierarchy_leak
 from wbcbench.qp import Problem
-from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.contacts import (
+    PlaneContact,
+    contacts_dim,
+    stack_wrench_constraints,
+    tile_wrench_weights,
+)
 from wbcbench.tasks.osf import OsfModel, OsfParams, group_levels, level_kinds
 from wbcbench.tasks.tasks import Task, TaskTerm
 
@@ -108,7 +113,7 @@ class OsfControllerBase(NativeController):
         self.kinds = level_kinds(self.levels)
         self.model = OsfModel(
             self.levels,
-            self.frames,
+            self.contacts,
             self.kinds,
             inverse=cfg.inverse,
             coupling=cfg.coupling,
@@ -122,7 +127,7 @@ class OsfControllerBase(NativeController):
             )
         self.server = ParameterServer(self.model, cfg.params, ctx.robot)
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
-        self.nc = 6 * len(self.frames)
+        self.nc = contacts_dim(self.contacts)
         names = {t.name for t in ctx.tasks}
         unknown = sorted(set(cfg.acc_limits) - names)
         if unknown:
@@ -153,7 +158,7 @@ class OsfControllerBase(NativeController):
         self.group_tasks(self.active_tasks)
         self.model = OsfModel(
             self.levels,
-            self.frames,
+            self.contacts,
             self.kinds,
             inverse=cfg.inverse,
             coupling=cfg.coupling,
@@ -268,7 +273,7 @@ class OsfControllerBase(NativeController):
         if not self.config.consistency:
             return {}
         level_tasks = [[(term.task.name, term.J, term.drift) for term in lv] for lv in per_level]
-        out = hierarchy_leak(state, self.frames, partial, extra, level_tasks, wrench)
+        out = hierarchy_leak(state, self.contacts, partial, extra, level_tasks, wrench)
         out["dc_error"] = dc_error(params)
         return out
 
@@ -283,11 +288,16 @@ class OsfControllerBase(NativeController):
         dist: np.ndarray,
         diagnostics: dict[str, float],
         problems: list[Problem],
+        internal: np.ndarray | None = None,
     ) -> ControlOutput:
         """The tick's output for the torque Γ = Γ_{≤L} + ``dist`` (the levels' cumulative
-        torques ``partial`` plus the wrench-distribution torque), with what it realises."""
+        torques ``partial`` plus the wrench-distribution torque), with what it realises;
+        ``internal``: forces no torque produces (G f = 0: along a line contact) the wrench
+        holds besides."""
         tau = partial[-1] + dist if partial else dist
         wrench = read.params.wrench(tau)
+        if internal is not None:
+            wrench = wrench + internal
         diagnostics.update(
             self.consistency_diagnostics(state, read.params, per_level, partial, dist, wrench)
         )
@@ -325,13 +335,15 @@ class OsfControllerBase(NativeController):
         )
 
 
-def wrench_selection(weights: list[float], n_contacts: int, controller: str) -> np.ndarray:
-    """Diagonal wrench weighting (6 n_contacts, 6 n_contacts) from 6 values per contact (repeated)
-    or one per wrench row; rows weighted 0 are dropped."""
+def wrench_selection(
+    weights: list[float], contacts: list[PlaneContact], controller: str
+) -> np.ndarray:
+    """Diagonal weighting of the force variable (nc, nc) from 6 values per contact (repeated;
+    a point's force takes the first 3) or one per row; rows weighted 0 are dropped."""
     w = np.asarray(weights, dtype=float)
-    nc = 6 * n_contacts
+    nc = contacts_dim(contacts)
     if w.size == 6:
-        w = np.tile(w, n_contacts)
+        w = tile_wrench_weights(w, contacts)
     if w.size != nc:
         raise ControllerError(
             f"{controller}: wrench_weights has {w.size} values; give 6 (repeated per contact) "
@@ -388,7 +400,7 @@ class ToOsf(OsfControllerBase):
         self.wrench_weighting()
 
     def wrench_weighting(self) -> None:
-        self.Sf = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
+        self.Sf = wrench_selection(self.config.wrench_weights, self.contacts, self.name)
 
     def native_settings(self, s: Any) -> None:
         cfg = self.config
@@ -493,6 +505,11 @@ class ToOsf(OsfControllerBase):
                 amend = rho[pos : pos + term.dim] - term.acc_ref
                 diagnostics[f"amend.{term.task.name}"] = float(np.linalg.norm(amend))
                 pos += term.dim
+        internal = None
+        if nc and any(c.points is not None and len(c.points) > 1 for c in self.contacts):
+            # the QP's distribution: F_opt's part no torque produces (forces along a line
+            # contact, which change no wrench at the frame) holds each point in its cone
+            internal = f_opt - p.Qf @ (p.Qf.T @ f_opt)
         return self.output(
-            state, read, timer, terms, per_level, partial, dist, diagnostics, [problem]
+            state, read, timer, terms, per_level, partial, dist, diagnostics, [problem], internal
         )
