@@ -19,6 +19,7 @@ import pytest
 
 import wbcbench.robots
 from tests.conftest import IMPLS, grounded_state
+from wbcbench.cli import main
 from wbcbench.controllers.registry import controller_class
 from wbcbench.dynamics.state import RobotState, contact_basis
 from wbcbench.errors import ScenarioError
@@ -310,3 +311,27 @@ def test_five_joint_legs_stand_and_sway_on_line_contacts(
     log = result.log.arrays()
     (com_error,) = (np.nanmax(v) for k, v in log.items() if k.startswith("err.com."))
     assert com_error < 5e-3, com_error
+
+
+def test_validate_names_a_task_the_held_soles_leave_unreachable(
+    sway: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """On flat soles these legs cannot shift the pelvis sideways (that takes ankle roll); on
+    line soles they can: the pelvis pose task is named in the first case only."""
+    paths = []
+    for name, contacts in (("flat_pose", FLAT_CONTACTS), ("line_pose", LINE_CONTACTS)):
+        text = scenario_text(contacts).replace(
+            "name: pelvis\n    type: frame_orientation", "name: pelvis\n    type: frame_pose"
+        )
+        paths.append(sway.parent / f"{name}.yaml")
+        paths[-1].write_text(text)
+    assert main(["validate", *map(str, paths)]) == 0
+    out = capsys.readouterr().out
+    flat_out, line_out = out.split(f"ok  {paths[1]}")
+    assert (
+        "    warning: tasks[1] ('pelvis') at the initial posture: its Jacobian has rank 5 of 6 in "
+        "the task's axes with the contacts held: no joint motion moves frame 'pelvis' along y, "
+        "so its target cannot be reached there; give the task only the axes its joints move "
+        "('axes:'), or a frame those joints carry\n"
+    ) in flat_out
+    assert "warning" not in line_out, line_out

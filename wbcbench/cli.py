@@ -95,6 +95,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         contact_rank,
         floor_collisions,
         sole_placements,
+        task_reach,
     )
 
     planner = Planner()
@@ -129,6 +130,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         rank = contact_rank(robot, q0, [pc for pc, _ in contacts])
         if rank:
             print(f"    warning: {rank}")
+        for _, sentence in task_reach(robot, q0, spec.tasks, [pc for pc, _ in contacts]):
+            print(f"    warning: {sentence}")
         for _, sentence in sole_mismatches(robot, q0, contacts):
             print(f"    warning: {sentence}")
         overlaps = self_collisions(robot, q0)

@@ -1,4 +1,5 @@
-"""Checks of a scenario's contacts on its robot before the first step, which ``validate`` prints.
+"""Checks of a scenario's contacts and tasks on its robot before the first step, which
+``validate`` prints.
 
 - :func:`floor_collisions`: the geometry simulated at each contact can collide with the world
   (a floor plane, or a wall for a hand contact; MuJoCo's rule: ``contype`` of one geom and
@@ -12,6 +13,8 @@
 - :func:`contact_rank`: the stacked contact Jacobian (6 rows per flat contact, the independent
   rows of a point set) has full row rank at the initial posture, else the controllers' contact
   constraint is singular; the warning writes out the line contact to give instead.
+- :func:`task_reach`: each CoM or frame task's axes can be moved by the joints with the
+  contacts held, at the initial posture.
 """
 
 from __future__ import annotations
@@ -23,6 +26,8 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from wbcbench.dynamics.state import RobotState
+from wbcbench.scenarios.schema import AXES_BY_TYPE, FRAME_TASKS, TaskSpec
 from wbcbench.tasks.contacts import PlaneContact, point_wrench_map
 
 #: largest angle [rad] between a contact frame's z axis and the floor's normal (1°: a 0.1 m
@@ -262,3 +267,67 @@ def _point_contact_advice(
         "give such a foot a line contact (forces only, along the axis its leg cannot turn "
         "about; points in the contact frame [m]) in 'contacts:': " + "; ".join(advice)
     )
+
+
+def task_reach(
+    robot: Any,
+    q: np.ndarray,
+    tasks: Sequence[TaskSpec],
+    contacts: Sequence[str | PlaneContact],
+) -> list[tuple[int, str]]:
+    """``(index, sentence)`` for each CoM or frame task whose controlled directions no joint
+    motion that keeps the contacts held can move at configuration q (nq,): its Jacobian J times
+    a basis N_c of the held contacts' null space lacks rank in the task's axes (a frame moved by
+    no actuated joint, or an axis its joints are aligned against)."""
+    state = RobotState(robot, q, np.zeros(robot.nv))
+    Jk, _ = state.contact_constraint(list(contacts))
+    N = _null_space(Jk, robot.nv)
+    # a base motion the contacts leave free and no joint drives (all of it without contacts)
+    # is not the joints' to make: take it out
+    E = np.zeros((robot.nv, 6))
+    E[:6] = np.eye(6)
+    E = E @ _null_space(Jk[:, :6], 6)
+    N = N - E @ (E.T @ N)
+    out = []
+    for i, task in enumerate(tasks):
+        if task.type == "com":
+            J, names = state.J_com, list(AXES_BY_TYPE["com"])
+        elif task.type in FRAME_TASKS and task.frame is not None:
+            J, names = state.jacobian(task.frame), list(AXES_BY_TYPE["frame_pose"])
+        else:
+            continue
+        rows = [names.index(a) for a in task.selected_axes]
+        u, s, _ = np.linalg.svd(J[rows] @ N)
+        rank = int((s > 1e-6 * max(float(np.abs(J[rows]).max(initial=0.0)), 1.0)).sum())
+        if rank == len(rows):
+            continue
+        where = f"frame {task.frame!r}" if task.frame else "the CoM"
+        if rank == 0:
+            why = f"no joint moves {where} with the contacts held"
+        else:
+            lacking = []
+            for column in u[:, rank:].T:
+                big = np.flatnonzero(np.abs(column) > 0.3 * np.abs(column).max())
+                lacking.append(" with ".join(names[rows[b]] for b in big))
+            why = (
+                f"its Jacobian has rank {rank} of {len(rows)} in the task's axes with the "
+                f"contacts held: no joint motion moves {where} along {'; nor '.join(lacking)}"
+            )
+        out.append(
+            (
+                i,
+                f"tasks[{i}] ({task.name!r}) at the initial posture: {why}, so its target "
+                "cannot be reached there; give the task only the axes its joints move "
+                "('axes:'), or a frame those joints carry",
+            )
+        )
+    return out
+
+
+def _null_space(A: np.ndarray, n: int) -> np.ndarray:
+    """An orthonormal basis (n, n − rank) of null(A), A (m, n); the identity when m = 0."""
+    if A.shape[0] == 0:
+        return np.eye(n)
+    _, s, vt = np.linalg.svd(A)
+    rank = int((s > RANK_TOLERANCE * max(float(s[0]), 1e-300)).sum())
+    return vt[rank:].T.copy()
