@@ -335,3 +335,26 @@ def test_validate_names_a_task_the_held_soles_leave_unreachable(
         "('axes:'), or a frame those joints carry\n"
     ) in flat_out
     assert "warning" not in line_out, line_out
+
+
+def test_a_scheduled_line_contact_ramps_each_points_normal_force() -> None:
+    """Lifting off a line contact: each point's f_min and f_max ramp, the points sharing the
+    ramp's force (the same total bound as a flat contact's)."""
+    from wbcbench.tasks.contacts import PlaneContact
+    from wbcbench.tasks.schedule import ContactSchedule, ScheduledContact
+
+    line = PlaneContact("l_sole", fmin=10.0, points=((0.12, 0.0, 0.0), (-0.12, 0.0, 0.0)))
+    C, lw, uw = line.wrench_constraints()
+    assert line.normal_rows() == [0, 5]
+    assert C[line.normal_rows()].tolist() == [[0, 0, 1, 0, 0, 0], [0, 0, 0, 0, 0, 1]]
+    schedule = ContactSchedule(
+        [ScheduledContact("l_sole", [(0.0, 1.0)], unload=0.1)], ramp_force=500.0
+    )
+    ramp = schedule.phase(0.95)  # halfway down the lift-off ramp
+    out_l, out_u = np.empty_like(lw), np.empty_like(uw)
+    schedule.scale_bounds(ramp, [line.normal_rows()], [np.inf], lw, uw, out_l, out_u)
+    assert out_l[[0, 5]].tolist() == pytest.approx([5.0, 5.0])
+    assert out_u[[0, 5]].tolist() == pytest.approx([125.0, 125.0])
+    others = [r for r in range(len(lw)) if r not in (0, 5)]
+    assert out_l[others].tolist() == lw[others].tolist()
+    assert out_u[others].tolist() == uw[others].tolist()

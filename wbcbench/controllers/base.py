@@ -308,7 +308,8 @@ class Controller(ABC):
         if entry is None:
             contacts = [self.ctx.contacts[i] for i in phase.active]
             Cw, lw, uw = stack_wrench_constraints(contacts)
-            rows = np.cumsum([0] + [c.n_constraints for c in contacts])[:-1].tolist()
+            starts = np.cumsum([0] + [c.n_constraints for c in contacts])[:-1].tolist()
+            rows = [[s + r for r in c.normal_rows()] for s, c in zip(starts, contacts, strict=True)]
             fmax = [c.fmax for c in contacts]
             entry = cache[phase.active] = (contacts, Cw, lw, uw, rows, fmax)
         contacts, Cw, lw, uw, rows, fmax = entry

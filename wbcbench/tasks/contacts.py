@@ -113,9 +113,11 @@ class PlaneContact:
         npts = len(self.points or ())
         return np.kron(np.eye(npts), block), np.tile(lo, npts), np.tile(hi, npts)
 
-    @property
-    def is_flat(self) -> bool:
-        return self.points is None
+    def normal_rows(self) -> list[int]:
+        """The rows of :meth:`wrench_constraints` that bound a normal force (one per point)."""
+        if self.points is None:
+            return [0]
+        return [i * (1 + self.facets) for i in range(len(self.points))]
 
     @property
     def dim(self) -> int:
