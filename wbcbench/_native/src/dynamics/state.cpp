@@ -73,6 +73,7 @@ RobotDynamics::RobotDynamics(const std::string& model,
   acom_.setZero(3);
   dJv_contact_.setZero(nc);
   contact_points_.assign(contact_frames.size(), Matrix::Zero(0, 3));
+  contact_bases_.assign(contact_frames.size(), Matrix::Zero(0, 0));
   J_task_.assign(task_frames.size(), Matrix::Zero(6, nv));
   dJv_task_.assign(task_frames.size(), Vector::Zero(6));
   p_task_.assign(task_frames.size(), Vector::Zero(3));
