@@ -243,9 +243,11 @@ def test_rank_deficient_contacts_are_named(tmp_path: Path) -> None:
     assert why.startswith("the contact Jacobian has rank 11 of 12 at the initial posture: ")
     assert "moment x" in why
     assert why.endswith(
-        "give such a foot point or line contacts (forces only, at the sole's corners or along "
-        "its edge)"
-    )
+        "give such a foot a line contact (forces only, along the axis its leg cannot turn "
+        "about; points in the contact frame [m]) in 'contacts:': "
+        "{frame: l_sole, type: line, points: [[x_front, y_mid, 0], [x_back, y_mid, 0]]}; "
+        "{frame: r_sole, type: line, points: [[x_front, y_mid, 0], [x_back, y_mid, 0]]}"
+    ), why
     (tmp_path / "full").mkdir()
     full = load_robot(write_pair(tmp_path / "full")[0])
     q_full = np.zeros(full.nq)

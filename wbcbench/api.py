@@ -9,7 +9,7 @@ folder to read.
 
     ctrl = wbcbench.make_controller("tocabi_stand_sway", "osf_hqp", solver="daqp")
     q, v = ctrl.initial_state()
-    out = ctrl.step(q, v, t=0.0)   # out.tau (k,), out.qdd (nv,), out.wrench (6c,), out.ok
+    out = ctrl.step(q, v, t=0.0)   # out.tau (k,), out.qdd (nv,), out.wrench, out.ok
     ctrl.close()
 
     res = wbcbench.load_results("results")   # res.runs, res.metrics (pandas DataFrames)
@@ -19,7 +19,8 @@ Conventions are Pinocchio's, as everywhere in wbcbench: ``q`` (nq,) is the free-
 ``v`` (nv,) is the base's spatial velocity in its own frame (linear, angular) followed by the
 joint velocities. ``tau`` is in the actuated joints' order (``robot.joint_names``), and the
 wrench stacks one 6-vector (force, torque) per contact of ``contact_frames``, each in its
-contact frame, the contact's reaction on the robot.
+contact frame, the contact's reaction on the robot; a point, line or polygon contact stacks a
+3-D force per point instead (``controller.full_wrench`` gives its 6-vector at the frame).
 """
 
 from __future__ import annotations

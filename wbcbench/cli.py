@@ -91,7 +91,12 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     from wbcbench.runs import Planner
     from wbcbench.scenarios.initial import initial_state, self_collisions, sole_mismatches
     from wbcbench.scenarios.load import build_contact, sole_boxes
-    from wbcbench.scenarios.preflight import contact_rank, floor_collisions, sole_placements
+    from wbcbench.scenarios.preflight import (
+        contact_rank,
+        floor_collisions,
+        sole_placements,
+        task_reach,
+    )
 
     planner = Planner()
     for loaded, robot in [planner.scenario(name, args.set) for name in args.scenarios]:
@@ -122,9 +127,11 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         geometry = [(c.frame, c.contact_geometry) for c in spec.contacts]
         for _, sentence in sole_placements(robot, q0, geometry):
             print(f"    warning: {sentence}")
-        rank = contact_rank(robot, q0, frames)
+        rank = contact_rank(robot, q0, [pc for pc, _ in contacts])
         if rank:
             print(f"    warning: {rank}")
+        for _, sentence in task_reach(robot, q0, spec.tasks, [pc for pc, _ in contacts]):
+            print(f"    warning: {sentence}")
         for _, sentence in sole_mismatches(robot, q0, contacts):
             print(f"    warning: {sentence}")
         overlaps = self_collisions(robot, q0)

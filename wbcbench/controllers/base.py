@@ -27,7 +27,12 @@ from wbcbench.qp.registry import DEFAULT_SOLVER
 from wbcbench.qp.solution import SolveTimes
 from wbcbench.robots.loader import Robot
 from wbcbench.scenarios.schema import Scenario
-from wbcbench.tasks.contacts import PlaneContact, stack_wrench_constraints
+from wbcbench.tasks.contacts import (
+    PlaneContact,
+    contacts_dim,
+    frame_wrenches,
+    stack_wrench_constraints,
+)
 from wbcbench.tasks.schedule import ContactPhase, ContactSchedule
 from wbcbench.tasks.tasks import Task, TaskTerm
 
@@ -152,7 +157,9 @@ class ControlOutput:
     Attributes:
         tau: joint torques (k,) [N·m], Pinocchio actuated order.
         qdd: the joint acceleration the controller predicts (n,).
-        wrench: the stacked contact wrenches it predicts (6c,), reaction on the robot.
+        wrench: the stacked contact force variable it predicts, reaction on the robot: 6 per
+            flat contact (its wrench), 3 per point of a point set (``full_wrench`` gives the
+            frame wrenches, 6 per contact).
         qd: the joint velocity command (n,) of velocity-level (kinematic) controllers, else None.
         terms: the evaluated tasks (errors for the logs).
         timings: seconds per stage: ``dynamics``, ``build``, ``solve`` (the whole call into the
@@ -256,6 +263,7 @@ class Controller(ABC):
                 raise ControllerError(native_schedule_refusal(self.name))
         # with a schedule, the first tick selects (and rebuilds what depends on the set)
         self.active_contacts = (-1,) if ctx.schedule else tuple(range(len(ctx.contacts)))
+        self.contacts = list(ctx.contacts)
         self.active_tasks = list(ctx.tasks)
 
     def start(self, state: RobotState) -> None:
@@ -269,9 +277,11 @@ class Controller(ABC):
 
     # -- a contact set that changes (ctx.schedule)
 
-    #: the active contacts' frames, stacked wrench inequalities ``lw ≤ Cw f ≤ uw`` and wrench
-    #: size 6c: the whole context's unless a schedule selects (:meth:`select_contacts`)
+    #: the active contacts' frames, stacked wrench inequalities ``lw ≤ Cw f ≤ uw`` and the size
+    #: of the force variable (6 per flat contact, 3 per point): the whole context's unless a
+    #: schedule selects (:meth:`select_contacts`)
     frames: list[str]
+    contacts: list[PlaneContact]
     Cw: np.ndarray
     lw: np.ndarray
     uw: np.ndarray
@@ -299,18 +309,20 @@ class Controller(ABC):
         if entry is None:
             contacts = [self.ctx.contacts[i] for i in phase.active]
             Cw, lw, uw = stack_wrench_constraints(contacts)
-            rows = np.cumsum([0] + [c.n_constraints for c in contacts])[:-1].tolist()
+            starts = np.cumsum([0] + [c.n_constraints for c in contacts])[:-1].tolist()
+            rows = [[s + r for r in c.normal_rows()] for s, c in zip(starts, contacts, strict=True)]
             fmax = [c.fmax for c in contacts]
             entry = cache[phase.active] = (contacts, Cw, lw, uw, rows, fmax)
         contacts, Cw, lw, uw, rows, fmax = entry
         changed = phase.active != self.active_contacts
         self.frames = [c.frame for c in contacts]
+        self.contacts = contacts
         if changed:
             held = set(self.frames)
             self.active_tasks = [
                 task for task in self.ctx.tasks if getattr(task, "frame", None) not in held
             ]
-        self.Cw, self.nc = Cw, 6 * len(contacts)
+        self.Cw, self.nc = Cw, contacts_dim(contacts)
         self.lw, self.uw = np.empty_like(lw), np.empty_like(uw)
         schedule.scale_bounds(phase, rows, fmax, lw, uw, self.lw, self.uw)
         self.active_contacts = phase.active
@@ -322,10 +334,12 @@ class Controller(ABC):
         """Rebuild what depends on the contact set, after :meth:`select_contacts` changed it."""
 
     def full_wrench(self, wrench: np.ndarray) -> np.ndarray:
-        """The active contacts' stacked wrench (6c,) spread over every contact of the context
-        (zeros for the inactive ones), as the runners log it."""
+        """The active contacts' frame wrenches (6 per contact, from the force variable
+        ``wrench``) spread over every contact of the context (zeros for the inactive ones), as
+        the runners log it."""
         if self.ctx.schedule is None:
-            return wrench
+            return frame_wrenches(self.ctx.contacts, wrench)
+        wrench = frame_wrenches([self.ctx.contacts[i] for i in self.active_contacts], wrench)
         out = np.zeros(6 * len(self.ctx.contacts))
         for j, i in enumerate(self.active_contacts):
             out[6 * i : 6 * i + 6] = wrench[6 * j : 6 * j + 6]

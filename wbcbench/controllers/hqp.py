@@ -53,7 +53,11 @@ from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.metrics.oracle import forward_dynamics
 from wbcbench.qp.hierarchy import Constraints, Objective, PriorityLevel, solve_hierarchy
-from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.contacts import (
+    contacts_dim,
+    stack_wrench_constraints,
+    tile_wrench_weights,
+)
 from wbcbench.tasks.tasks import JointPostureTask, TaskTerm
 
 Final = Literal["torque", "wrench", "acceleration_energy", "zero_torque_energy"]
@@ -118,7 +122,7 @@ class Hqp(NativeController):
                 )
         self.priorities = sorted({t.priority for t in ctx.tasks})
         self.frames = ctx.contact_frames
-        self.nc = 6 * len(self.frames)
+        self.nc = contacts_dim(self.contacts)
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
         n_qp = (
             1
@@ -135,7 +139,10 @@ class Hqp(NativeController):
         s = core.HqpSettings()
         s.strategy = getattr(core.Strategy, cfg.strategy)
         s.finals = [getattr(core.HqpFinal, name) for name in cfg.finals]
-        s.wrench_weights = np.asarray(cfg.wrench_weights, dtype=float)
+        weights = np.asarray(cfg.wrench_weights, dtype=float)
+        if any(c.points is not None for c in self.contacts):  # one per row: points take 3
+            weights = tile_wrench_weights(weights, self.contacts)
+        s.wrench_weights = weights
         s.prox = cfg.prox
         s.accept_tol = accept_tol(self.ctx)
         s.level_weights = list(cfg.level_weights)
@@ -178,15 +185,17 @@ class Hqp(NativeController):
     def _hard(self, state: RobotState) -> Constraints:
         n, k, nc = state.n, state.k, self.nc
         nx = n + k + nc
-        Jc = state.contact_jacobian(self.frames)
-        A = np.zeros((n + nc, nx))
-        b = np.zeros(n + nc)
+        Jc = state.contact_jacobian(self.contacts)
+        Jk, dk = state.contact_constraint(self.contacts)
+        nk = Jk.shape[0]
+        A = np.zeros((n + nk, nx))
+        b = np.zeros(n + nk)
         A[:n, :n] = state.M
         A[6:n, n : n + k] = -np.eye(k)
         A[:n, n + k :] = -Jc.T
         b[:n] = -state.h
-        A[n:, :n] = Jc
-        b[n:] = -state.contact_drift(self.frames)
+        A[n:, :n] = Jk
+        b[n:] = -dk
         C = np.zeros((self.Cw.shape[0], nx))
         C[:, n + k :] = self.Cw
         lb = np.full(nx, -np.inf)
@@ -230,7 +239,7 @@ class Hqp(NativeController):
                 F[:, n : n + k] = np.eye(k)
                 out.append(Objective(name, F, np.zeros(k), weight=1e-6))
             elif name == "wrench":
-                W = np.tile(np.asarray(self.config.wrench_weights), len(self.frames))
+                W = tile_wrench_weights(np.asarray(self.config.wrench_weights), self.contacts)
                 F = np.zeros((nc, nx))
                 F[:, n + k :] = np.diag(W)
                 out.append(Objective(name, F, np.zeros(nc), weight=1e-6))
@@ -241,7 +250,7 @@ class Hqp(NativeController):
                 F[:, :n] = L.T
                 target = np.zeros(n)
                 if name == "zero_torque_energy":
-                    qdd0 = forward_dynamics(state, np.zeros(k), self.frames).qdd
+                    qdd0 = forward_dynamics(state, np.zeros(k), self.contacts).qdd
                     target = L.T @ qdd0
                 out.append(Objective(name, F, target, weight=1e-6))
         return out

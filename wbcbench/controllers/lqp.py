@@ -61,7 +61,7 @@ from wbcbench.qp.hierarchy import (
     PriorityLevel,
     solve_hierarchy,
 )
-from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.contacts import contacts_dim, stack_wrench_constraints
 from wbcbench.tasks.tasks import TaskTerm
 
 
@@ -211,7 +211,7 @@ class Lqp(NativeController):
         super().__init__(ctx, config)
         self.frames = ctx.contact_frames
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
-        self.nc = 6 * len(self.frames)
+        self.nc = contacts_dim(self.contacts)
         self.pool = SolverPool(ctx)
         self.last: HierarchyResult | None = None
         self.last_output: ControlOutput | None = None
@@ -258,8 +258,8 @@ class Lqp(NativeController):
         n, k, nc = state.n, state.k, self.nc
         nx = n + nc
         M, h = state.M, state.h
-        Jc = state.contact_jacobian(self.frames)
-        dJc = state.contact_drift(self.frames)
+        Jc = state.contact_jacobian(self.contacts)
+        Jk, dk = state.contact_constraint(self.contacts)
         tau_max = self.ctx.tau_max
         G = np.hstack([M[6:], -Jc[:, 6:].T])
         gamma = h[6:]
@@ -278,8 +278,8 @@ class Lqp(NativeController):
         qdd_max = np.full(k, cfg.qdd_limit)
         contacts = PriorityLevel(
             "contacts",
-            A=np.hstack([Jc, np.zeros((nc, nc))]),
-            b=-dJc,
+            A=np.hstack([Jk, np.zeros((Jk.shape[0], nc))]),
+            b=-dk,
             C=C2,
             l=np.concatenate([self.lw, -qdd_max]),
             u=np.concatenate([self.uw, qdd_max]),

@@ -33,7 +33,7 @@ from wbcbench.controllers.base import (
     NativeImplConfig,
     SolveTimes,
 )
-from wbcbench.dynamics.state import RobotState
+from wbcbench.dynamics.state import RobotState, contact_basis
 from wbcbench.errors import ControllerError
 from wbcbench.qp import Problem, Solution, SolutionStatus
 from wbcbench.qp.hierarchy import accept_tol_for
@@ -503,6 +503,15 @@ class NativeController(Controller):
         model = self.ctx.robot.pin_model.saveToString()
         tick_class = getattr(_native.core(), self.tick_type)
         tick = tick_class(model, frames, self.ctx.contact_frames, *self.tick_args())
+        if any(c.points is not None for c in self.ctx.contacts):
+            # points and row bases as the Python path's (RobotState.contact_constraint)
+            tick.set_contact_points(
+                [np.asarray(c.points or np.zeros((0, 3)), dtype=float) for c in self.ctx.contacts],
+                [
+                    np.zeros((0, 0)) if c.points is None else contact_basis(c.points)
+                    for c in self.ctx.contacts
+                ],
+            )
         for task in tasks:
             tick.tasks.add(task_spec(task, frames))
         self.configure_tick(tick)

@@ -74,10 +74,20 @@ class OsfHqp(OsfControllerBase):
         solvers = getattr(self, "solvers", None)
         while solvers is not None and len(solvers) < len(self.levels):
             solvers.append(self.ctx.new_solver())
-        Wc = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
+        Wc = wrench_selection(self.config.wrench_weights, self.contacts, self.name)
         self.WtW = Wc.T @ Wc
 
+    def on_start(self, state: RobotState) -> None:
+        """The wrench-distribution space's dimension at the first state, for the native tick:
+        ``c − 6`` for independent plane contacts; point sets (dependent rows) give it from the
+        rank of their rows."""
+        super().on_start(state)
+        self.distribution = -1
+        if any(c.points is not None and len(c.points) > 1 for c in self.contacts):
+            self.distribution = int(self.model.params(state).Yc.shape[1])
+
     def native_settings(self, s: Any) -> None:
+        s.distribution = getattr(self, "distribution", -1)
         s.regularization = self.config.regularization
         s.carry_tolerance = self.config.carry_tolerance
         s.WtW = np.asarray(self.WtW, dtype=float).reshape(self.nc, self.nc)

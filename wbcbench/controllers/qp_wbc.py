@@ -33,7 +33,7 @@ from wbcbench.controllers.base import (
 from wbcbench.controllers.native import NativeController, QpCall, set_limits
 from wbcbench.dynamics.state import RobotState
 from wbcbench.qp import Problem
-from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.contacts import contacts_dim, stack_wrench_constraints
 from wbcbench.tasks.tasks import Task, TaskTerm
 
 
@@ -94,7 +94,7 @@ class QpWbc(NativeController):
         frames = ctx.contact_frames
         self.frames = frames
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
-        self.nc = 6 * len(frames)
+        self.nc = contacts_dim(self.contacts)
 
     def configure_tick(self, tick: Any) -> None:
         cfg = self.config
@@ -122,8 +122,10 @@ class QpWbc(NativeController):
         n, k, nc = state.n, state.k, self.nc
         terms = self.evaluate_tasks(state, t)
         M, h = state.M, state.h
-        Jc = state.contact_jacobian(self.frames)
-        dJc = state.contact_drift(self.frames)
+        Jc = state.contact_jacobian(self.contacts)
+        # J_c q̈ + J̇_c q̇ = 0 on the rows independent by construction (all of a flat contact's)
+        Jk, dJc = state.contact_constraint(self.contacts)
+        nk = Jk.shape[0]
         Hq, gq = accumulate_tasks(terms, cfg.weights, n)
         Hq[np.diag_indices(n)] += cfg.acceleration_weight
         tau_max = self.ctx.tau_max
@@ -137,13 +139,13 @@ class QpWbc(NativeController):
             g[iq] = gq
             H[it, it] = cfg.torque_weight * np.eye(k)
             H[iF, iF] = cfg.wrench_weight * np.eye(nc)
-            A = np.zeros((n + nc, nx))
-            b = np.zeros(n + nc)
+            A = np.zeros((n + nk, nx))
+            b = np.zeros(n + nk)
             A[:n, iq] = M
             A[6:n, it] = -np.eye(k)
             A[:n, iF] = -Jc.T
             b[:n] = -h
-            A[n:, iq] = Jc
+            A[n:, iq] = Jk
             b[n:] = -dJc
             C = np.zeros((self.Cw.shape[0], nx))
             C[:, iF] = self.Cw
@@ -164,12 +166,12 @@ class QpWbc(NativeController):
             H[iF, iF] = cfg.wrench_weight * np.eye(nc)
             H += cfg.torque_weight * (G.T @ G)
             g += cfg.torque_weight * (G.T @ gamma)
-            A = np.zeros((6 + nc, nx))
-            b = np.zeros(6 + nc)
+            A = np.zeros((6 + nk, nx))
+            b = np.zeros(6 + nk)
             A[:6, iq] = M[:6]
             A[:6, iF] = -Jc[:, :6].T
             b[:6] = -h[:6]
-            A[6:, iq] = Jc
+            A[6:, iq] = Jk
             b[6:] = -dJc
             nw = self.Cw.shape[0]
             C = np.zeros((nw + k, nx))

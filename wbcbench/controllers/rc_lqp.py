@@ -149,7 +149,7 @@ from wbcbench.controllers.native import (
 from wbcbench.dynamics.chains import CENTROID_DIM, split_chains
 from wbcbench.dynamics.dense import spd_factor, tri_solve
 from wbcbench.dynamics.reduced import ReducedDynamics, ReducedModel
-from wbcbench.dynamics.state import RobotState
+from wbcbench.dynamics.state import RobotState, contact_selector
 from wbcbench.qp.hierarchy import (
     Constraints,
     HierarchyResult,
@@ -157,7 +157,7 @@ from wbcbench.qp.hierarchy import (
     PriorityLevel,
     solve_hierarchy,
 )
-from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.contacts import contacts_dim, stack_wrench_constraints
 from wbcbench.tasks.tasks import TaskTerm
 
 
@@ -312,9 +312,9 @@ class RcLqp(NativeController):
         super().__init__(ctx, config)
         self.frames = ctx.contact_frames
         self.split = split_chains(ctx.robot.pin_model, self.frames)
-        self.reduced = ReducedDynamics(ctx.robot.pin_model, self.split)
+        self.reduced = ReducedDynamics(ctx.robot.pin_model, self.split, self.contacts)
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
-        self.nc = 6 * len(self.frames)
+        self.nc = contacts_dim(self.contacts)
         self.pool1 = SolverPool(ctx)
         self.pool2 = SolverPool(ctx)
         self.pool1b = SolverPool(ctx)
@@ -362,7 +362,7 @@ class RcLqp(NativeController):
             split = split_chains(self.ctx.robot.pin_model, self.frames)
             entry = models[self.active_contacts] = (
                 split,
-                ReducedDynamics(self.ctx.robot.pin_model, split),
+                ReducedDynamics(self.ctx.robot.pin_model, split, self.contacts),
             )
         self.split, self.reduced = entry
         self._act_plain = self.split.plain[6:] - 6
@@ -517,7 +517,11 @@ class RcLqp(NativeController):
         nc, n_r, n_p = self.nc, self.split.n_reduced, red.n_plain
         nx = n_r + nc
         nl = red.b_r + red.g_r
-        dJc = state.contact_drift(self.frames)
+        dJc = state.contact_drift(self.contacts)
+        Jk_r = red.J_cr
+        T = contact_selector(self.contacts)
+        if T is not None:  # a point set's independent rows
+            Jk_r, dJc = T @ red.J_cr, T @ dJc
         G = np.hstack([red.M_r[6:n_p], -red.J_cr[:, 6:n_p].T])
         gamma = nl[6:n_p]
         tau_max = self.ctx.tau_max[self._act_plain]
@@ -539,7 +543,7 @@ class RcLqp(NativeController):
         levels.append(
             PriorityLevel(
                 "contacts",
-                A=np.hstack([red.J_cr, np.zeros((nc, nc))]),
+                A=np.hstack([Jk_r, np.zeros((Jk_r.shape[0], nc))]),
                 b=-dJc,
                 C=C2,
                 l=np.concatenate([self.lw, -qdd_max]),
@@ -854,7 +858,7 @@ class RcLqp(NativeController):
         f = x1[n_r:]
         if res2 is not None:
             qdd[uc] = res2.x
-        Jc = state.contact_jacobian(self.frames)
+        Jc = state.contact_jacobian(self.contacts)
         # the full inverse dynamics at (q̈, f): actuated rows for Γ, base rows as a check
         full = state.M @ qdd + state.h - Jc.T @ f
         tau = full[6:]
@@ -958,7 +962,7 @@ class RcLqp(NativeController):
                 extra["fallback"] = 1.0
                 qdd, f, tau, why = fb.x[:n].copy(), fb.x[n:].copy(), G @ fb.x + gamma, ""
                 # the residuals of the solution applied (the full model has no eq. 30)
-                Jc = state.contact_jacobian(self.frames)
+                Jc = state.contact_jacobian(self.contacts)
                 base = state.M[:6] @ qdd + state.h[:6] - Jc[:, :6].T @ f
                 diag["base_residual"] = float(np.abs(base).max())
                 diag["coupling_residual"] = float("nan")

@@ -50,7 +50,12 @@ from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
 from wbcbench.metrics.consistency import dc_error, hierarchy_leak
 from wbcbench.qp import Problem
-from wbcbench.tasks.contacts import stack_wrench_constraints
+from wbcbench.tasks.contacts import (
+    PlaneContact,
+    contacts_dim,
+    stack_wrench_constraints,
+    tile_wrench_weights,
+)
 from wbcbench.tasks.osf import OsfModel, OsfParams, group_levels, level_kinds
 from wbcbench.tasks.tasks import Task, TaskTerm
 
@@ -113,7 +118,7 @@ class OsfControllerBase(NativeController):
         self.kinds = level_kinds(self.levels)
         self.model = OsfModel(
             self.levels,
-            self.frames,
+            self.contacts,
             self.kinds,
             inverse=cfg.inverse,
             coupling=cfg.coupling,
@@ -127,7 +132,7 @@ class OsfControllerBase(NativeController):
             )
         self.server = ParameterServer(self.model, cfg.params, ctx.robot)
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
-        self.nc = 6 * len(self.frames)
+        self.nc = contacts_dim(self.contacts)
         names = {t.name for t in ctx.tasks}
         unknown = sorted(set(cfg.acc_limits) - names)
         if unknown:
@@ -158,7 +163,7 @@ class OsfControllerBase(NativeController):
         self.group_tasks(self.active_tasks)
         self.model = OsfModel(
             self.levels,
-            self.frames,
+            self.contacts,
             self.kinds,
             inverse=cfg.inverse,
             coupling=cfg.coupling,
@@ -273,7 +278,7 @@ class OsfControllerBase(NativeController):
         if not self.config.consistency:
             return {}
         level_tasks = [[(term.task.name, term.J, term.drift) for term in lv] for lv in per_level]
-        out = hierarchy_leak(state, self.frames, partial, extra, level_tasks, wrench)
+        out = hierarchy_leak(state, self.contacts, partial, extra, level_tasks, wrench)
         out["dc_error"] = dc_error(params)
         return out
 
@@ -288,11 +293,16 @@ class OsfControllerBase(NativeController):
         dist: np.ndarray,
         diagnostics: dict[str, float],
         problems: list[Problem],
+        internal: np.ndarray | None = None,
     ) -> ControlOutput:
         """The tick's output for the torque Γ = Γ_{≤L} + ``dist`` (the levels' cumulative
-        torques ``partial`` plus the wrench-distribution torque), with what it realises."""
+        torques ``partial`` plus the wrench-distribution torque), with what it realises;
+        ``internal``: forces no torque produces (G f = 0: along a line contact) the wrench
+        holds besides."""
         tau = partial[-1] + dist if partial else dist
         wrench = read.params.wrench(tau)
+        if internal is not None:
+            wrench = wrench + internal
         diagnostics.update(
             self.consistency_diagnostics(state, read.params, per_level, partial, dist, wrench)
         )
@@ -347,13 +357,15 @@ def internal_basis(G: np.ndarray) -> np.ndarray | None:
     return np.vstack([-np.linalg.solve(B, G[:, 6:]), np.eye(c - 6)])
 
 
-def wrench_selection(weights: list[float], n_contacts: int, controller: str) -> np.ndarray:
-    """Diagonal wrench weighting (6 n_contacts, 6 n_contacts) from 6 values per contact (repeated)
-    or one per wrench row; rows weighted 0 are dropped."""
+def wrench_selection(
+    weights: list[float], contacts: list[PlaneContact], controller: str
+) -> np.ndarray:
+    """Diagonal weighting of the force variable (nc, nc) from 6 values per contact (repeated;
+    a point's force takes the first 3) or one per row; rows weighted 0 are dropped."""
     w = np.asarray(weights, dtype=float)
-    nc = 6 * n_contacts
+    nc = contacts_dim(contacts)
     if w.size == 6:
-        w = np.tile(w, n_contacts)
+        w = tile_wrench_weights(w, contacts)
     if w.size != nc:
         raise ControllerError(
             f"{controller}: wrench_weights has {w.size} values; give 6 (repeated per contact) "
@@ -387,8 +399,8 @@ class ToOsfConfig(OsfBaseConfig):
     internal: Literal["basis", "constraint"] = Field(
         "basis",
         description="F_opt as N w over a basis N of the grasp map's null space (a QP with no "
-        "equality rows and 6 variables fewer), or as 6c variables with G F_opt = 0 as equality "
-        "rows (the literal eq. 14); the same optimum",
+        "equality rows and 6 variables fewer; when the first contact is flat), or as its own "
+        "variables with G F_opt = 0 as equality rows (the literal eq. 14); the same optimum",
     )
 
     @field_validator("weights")
@@ -416,7 +428,17 @@ class ToOsf(OsfControllerBase):
         self.wrench_weighting()
 
     def wrench_weighting(self) -> None:
-        self.Sf = wrench_selection(self.config.wrench_weights, len(self.frames), self.name)
+        self.Sf = wrench_selection(self.config.wrench_weights, self.contacts, self.name)
+
+    def uses_basis(self) -> bool:
+        """F_opt over a basis of G's null space: with ``internal: basis`` when the first
+        contact is flat (its block of G is then invertible); a first contact made of points
+        keeps eq. (14) as equality rows."""
+        return (
+            self.config.internal == "basis"
+            and bool(self.contacts)
+            and self.contacts[0].points is None
+        )
 
     def native_settings(self, s: Any) -> None:
         cfg = self.config
@@ -428,7 +450,7 @@ class ToOsf(OsfControllerBase):
         s.wrench_total = cfg.wrench_cost == "total"
         s.regularization = cfg.regularization
         s.Sf = np.asarray(self.Sf, dtype=float).reshape(-1, self.nc)
-        s.internal_basis = cfg.internal == "basis"
+        s.internal_basis = self.uses_basis()
 
     def qp_calls(self, tick: Any) -> list[QpCall]:
         return [QpCall(tick.qp, "to_osf", self.solver, self.config.solver_calls)]
@@ -459,8 +481,8 @@ class ToOsf(OsfControllerBase):
         rho_ref = np.concatenate(refs)
         nr = rho_ref.size
         # F_opt = N w: N a basis of G's null space (internal_basis), or F_opt itself (N = I)
-        N = internal_basis(p.G) if nc >= 6 and cfg.internal == "basis" else None
-        if N is None and nc >= 6 and cfg.internal == "basis":
+        N = internal_basis(p.G) if self.uses_basis() else None
+        if N is None and self.uses_basis():
             return self.failed(timer, read, terms, SINGULAR_BASIS, [])
         nw = nc if N is None else N.shape[1]
         nx = nr + nw
@@ -531,6 +553,11 @@ class ToOsf(OsfControllerBase):
                 amend = rho[pos : pos + term.dim] - term.acc_ref
                 diagnostics[f"amend.{term.task.name}"] = float(np.linalg.norm(amend))
                 pos += term.dim
+        internal = None
+        if nc and any(c.points is not None and len(c.points) > 1 for c in self.contacts):
+            # the QP's distribution: F_opt's part no torque produces (forces along a line
+            # contact, which change no wrench at the frame) holds each point in its cone
+            internal = f_opt - p.Qf @ (p.Qf.T @ f_opt)
         return self.output(
-            state, read, timer, terms, per_level, partial, dist, diagnostics, [problem]
+            state, read, timer, terms, per_level, partial, dist, diagnostics, [problem], internal
         )

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import functools
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +46,7 @@ import pinocchio as pin
 
 from wbcbench.dynamics.chains import CENTROID_DIM, ChainSplit
 from wbcbench.dynamics.dense import skew, spd_factor, spd_inverse, spd_solve
-from wbcbench.dynamics.state import RobotState
+from wbcbench.dynamics.state import ContactLike, RobotState
 
 
 @dataclass
@@ -139,9 +140,16 @@ class ReducedDynamics:
     cost more than the passes).
     """
 
-    def __init__(self, model: pin.Model, split: ChainSplit) -> None:
+    def __init__(
+        self,
+        model: pin.Model,
+        split: ChainSplit,
+        contacts: Sequence[str | ContactLike] | None = None,
+    ) -> None:
         self.model = model
         self.split = split
+        #: the contacts whose rows J_cr holds (by default the split's frames, flat)
+        self.contacts = list(split.contact_frames if contacts is None else contacts)
         self._data = model.createData()
         n, n_r = split.n, split.n_reduced
         plain = split.plain
@@ -222,7 +230,7 @@ class ReducedDynamics:
         b_r = proj[:, 0] - M_r @ dJr_v
         g_r = proj[:, 1]
         Jbar_r = JMinv.T @ M_r
-        Jc = state.contact_jacobian(split.contact_frames)
+        Jc = state.contact_jacobian(self.contacts)
         J_cr = np.zeros((Jc.shape[0], split.n_reduced))
         J_cr[:, :n_p] = Jc[:, self._plain]
 

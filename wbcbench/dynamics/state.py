@@ -20,20 +20,65 @@ formulating and solving their QPs.
 
 from __future__ import annotations
 
+import functools
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import pinocchio as pin
 
-from wbcbench.dynamics.dense import symmetric_from_upper
+from wbcbench.dynamics.dense import skew, symmetric_from_upper
 
 if TYPE_CHECKING:
     from wbcbench.robots.loader import Robot
 
 LOCAL = pin.ReferenceFrame.LOCAL
 LOCAL_WORLD_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+class ContactLike(Protocol):
+    """A contact as the state reads it: its frame and, for a point set, its points (N, 3) in
+    the frame (None: a flat 6-D contact)."""
+
+    frame: str
+    points: tuple[tuple[float, float, float], ...] | None
+
+
+def point_velocity_map(points: Sequence[Sequence[float]]) -> np.ndarray:
+    """Gᵀ (3N, 6): the points' velocities [v_p] of the frame's [v; ω], v_p = v + ω × p =
+    [I, −[p]×] [v; ω] (its transpose maps point forces to the frame's wrench)."""
+    return np.vstack([np.hstack([np.eye(3), -skew(np.asarray(p, dtype=float))]) for p in points])
+
+
+@functools.lru_cache(maxsize=64)
+def contact_basis(points: tuple[tuple[float, float, float], ...]) -> np.ndarray:
+    """T (r, 3N): an orthonormal basis of range(Gᵀ) (r = 3 for one point, 5 for a line, 6 for
+    a polygon), from the SVD; the rank counts singular values above 1e-9 of the largest."""
+    u, s, _ = np.linalg.svd(point_velocity_map(points), full_matrices=False)
+    r = int((s > 1e-9 * s[0]).sum())
+    return u[:, :r].T.copy()
+
+
+def contact_selector(contacts: Sequence[str | ContactLike]) -> np.ndarray | None:
+    """The block-diagonal map (r, Σ dim) from the contacts' stacked rows to their independent
+    ones (identity blocks for flat contacts, :func:`contact_basis` for point sets); None when
+    every contact is flat."""
+    point_sets = [None if isinstance(c, str) else c.points for c in contacts]
+    if all(p is None for p in point_sets):
+        return None
+    blocks = [np.eye(6) if p is None else contact_basis(tuple(map(tuple, p))) for p in point_sets]
+    T = np.zeros((sum(b.shape[0] for b in blocks), sum(b.shape[1] for b in blocks)))
+    r = c = 0
+    for b in blocks:
+        T[r : r + b.shape[0], c : c + b.shape[1]] = b
+        r, c = r + b.shape[0], c + b.shape[1]
+    return T
+
+
+def _contact_key(c: str | ContactLike) -> object:
+    return c if isinstance(c, str) else (c.frame, c.points)
 
 
 def _symmetrize_upper(a: np.ndarray) -> np.ndarray:
@@ -299,26 +344,67 @@ class RobotState:
 
     # -- stacked contact quantities -------------------------------------------------------------
 
-    def contact_jacobian(self, frames: tuple[str, ...] | list[str]) -> np.ndarray:
-        """Stacked LOCAL Jacobians of plane contacts (6c, n)."""
-        key = ("Jc", tuple(frames))
+    def contact_jacobian(self, contacts: Sequence[str | ContactLike]) -> np.ndarray:
+        """Stacked contact Jacobians (Σ dim, n): a frame's LOCAL Jacobian (6 rows) for a flat
+        contact, or each point's linear velocity in the frame's axes (3 rows per point)."""
+        key = ("Jc", *map(_contact_key, contacts))
         if key in self._cache:
             return self._cache[key]
-        if not frames:
+        if not contacts:
             value = np.zeros((0, self.n))
         else:
-            value = np.vstack([self.jacobian(f, local=True) for f in frames])
+            value = np.vstack([self._contact_rows(c) for c in contacts])
         self._cache[key] = value
         return value
 
-    def contact_drift(self, frames: tuple[str, ...] | list[str]) -> np.ndarray:
-        """Stacked J̇_c q̇ of plane contacts (6c,)."""
-        key = ("dJcv", tuple(frames))
+    def contact_drift(self, contacts: Sequence[str | ContactLike]) -> np.ndarray:
+        """Stacked J̇_c q̇ (Σ dim,): a flat contact's spatial acceleration at zero q̈ (LOCAL), a
+        point's classical acceleration at zero q̈ in the frame's axes."""
+        key = ("dJcv", *map(_contact_key, contacts))
         if key in self._cache:
             return self._cache[key]
-        if not frames:
+        if not contacts:
             value = np.zeros(0)
         else:
-            value = np.concatenate([self.drift(f, local=True) for f in frames])
+            value = np.concatenate([self._contact_drift(c) for c in contacts])
         self._cache[key] = value
         return value
+
+    def contact_constraint(
+        self, contacts: Sequence[str | ContactLike]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(J_k, d_k): the rows of J_c q̈ + J̇_c q̇ = 0 that are independent by construction.
+
+        A flat contact keeps its 6 rows; a point set's 3N rows are ``Gᵀ J_frame`` and hold only
+        the frame motions in the range of Gᵀ (5 for a line, 6 for a polygon), so they are
+        replaced by ``T`` times them, ``T`` (r, 3N) an orthonormal basis of that range
+        (:func:`contact_basis`): the same constraint, without rows that QP solvers reject as
+        dependent equalities.
+        """
+        key = ("Jk", *map(_contact_key, contacts))
+        if key in self._cache:
+            return self._cache[key], self._cache[("dk", *key[1:])]
+        Jc, dJc = self.contact_jacobian(contacts), self.contact_drift(contacts)
+        T = contact_selector(contacts)
+        J, d = (Jc, dJc) if T is None else (T @ Jc, T @ dJc)
+        self._cache[key], self._cache[("dk", *key[1:])] = J, d
+        return J, d
+
+    def _contact_rows(self, c: str | ContactLike) -> np.ndarray:
+        frame, points = (c, None) if isinstance(c, str) else (c.frame, c.points)
+        J = self.jacobian(frame, local=True)
+        if points is None:
+            return J
+        return point_velocity_map(points) @ J
+
+    def _contact_drift(self, c: str | ContactLike) -> np.ndarray:
+        frame, points = (c, None) if isinstance(c, str) else (c.frame, c.points)
+        a = self.drift(frame, local=True)
+        if points is None:
+            return a
+        # classical: a_p = a + α × p + ω × (v + ω × p), all in the frame (spatial a, α)
+        vel = self.velocity(frame, local=True)
+        v, w = vel[:3], vel[3:]
+        return np.concatenate(
+            [a[:3] + np.cross(a[3:], p) + np.cross(w, v + np.cross(w, p)) for p in points]
+        )

@@ -16,12 +16,13 @@ import numpy as np
 
 from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
+from wbcbench.tasks.contacts import PlaneContact, frame_wrenches
 from wbcbench.tasks.osf import OsfParams
 
 
 def hierarchy_leak(
     state: RobotState,
-    frames: list[str],
+    frames: Sequence[str | PlaneContact],
     partial: Sequence[np.ndarray],
     extra: np.ndarray,
     level_tasks: Sequence[Sequence[tuple[str, np.ndarray, np.ndarray]]],
@@ -31,11 +32,12 @@ def hierarchy_leak(
 
     Args:
         state: the true state of the tick.
-        frames: the contact frames.
+        frames: the contacts (a frame name for a flat one).
         partial: cumulative task torques Γ_{≤1}, …, Γ_{≤L} (k,) [N·m].
         extra: torque added to every partial one (the wrench distribution, in null(W)) (k,).
         level_tasks: per level, (task name, J (m, n), J̇q̇ (m,)) of each task.
-        predicted_wrench: the controller's predicted wrench (c,), to compare with the oracle's.
+        predicted_wrench: the controller's predicted force variable (c,), to compare with the
+            oracle's (as wrenches at the contact frames).
 
     Returns:
         ``leak.<task>``: the largest change of the task's realised acceleration caused by the
@@ -62,7 +64,9 @@ def hierarchy_leak(
     out["leak_max"] = leak_max
     out["contact_acc"] = float(np.abs(final.contact_acc).max()) if final.contact_acc.size else 0.0
     if predicted_wrench is not None and predicted_wrench.size:
-        out["wrench_residual"] = float(np.linalg.norm(predicted_wrench - final.wrench))
+        contacts = [PlaneContact(frame=c) if isinstance(c, str) else c for c in frames]
+        predicted = frame_wrenches(contacts, predicted_wrench)
+        out["wrench_residual"] = float(np.linalg.norm(predicted - final.wrench))
     return out
 
 

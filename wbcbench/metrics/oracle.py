@@ -12,22 +12,31 @@ wrench = realized wrench.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from wbcbench.dynamics.state import RobotState
+from wbcbench.tasks.contacts import PlaneContact, frame_wrenches
 
 
 @dataclass
 class OracleResult:
     qdd: np.ndarray  # (n,)
-    wrench: np.ndarray  # (6c,) reaction on the robot
-    contact_acc: np.ndarray  # J_c q̈ + J̇_c q̇ (6c,), ≈ 0 by construction
+    wrench: np.ndarray  # (6c,) reaction on the robot, each contact's wrench at its frame
+    contact_acc: np.ndarray  # J_c q̈ + J̇_c q̇ (Σ dim,), ≈ 0 by construction
+    forces: np.ndarray  # (Σ dim,) the force variable: 6 per flat contact, 3 per point
 
 
-def forward_dynamics(state: RobotState, tau: np.ndarray, frames: list[str]) -> OracleResult:
-    """Rigid-contact forward dynamics at ``state`` under joint torques ``tau`` (k,)."""
+def forward_dynamics(
+    state: RobotState, tau: np.ndarray, frames: Sequence[str | PlaneContact]
+) -> OracleResult:
+    """Rigid-contact forward dynamics at ``state`` under joint torques ``tau`` (k,).
+
+    ``frames``: the held contacts, a frame name for a flat one. A point set's rows are its
+    points' accelerations (3 each): several points on one body make K singular yet consistent,
+    its forces are then not unique but their wrench at the frame ``G f`` is, and q̈ is."""
     n = state.n
     M, h = state.M, state.h
     Jc = state.contact_jacobian(frames)
@@ -43,4 +52,6 @@ def forward_dynamics(state: RobotState, tau: np.ndarray, frames: list[str]) -> O
     # lstsq: redundant contacts (e.g. three coplanar planes) make K singular yet consistent
     sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
     qdd, f = sol[:n], sol[n:]
-    return OracleResult(qdd=qdd, wrench=f, contact_acc=Jc @ qdd + dJc)
+    contacts = [PlaneContact(frame=c) if isinstance(c, str) else c for c in frames]
+    wrench = frame_wrenches(contacts, f)
+    return OracleResult(qdd=qdd, wrench=wrench, contact_acc=Jc @ qdd + dJc, forces=f)

@@ -53,6 +53,8 @@ _LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
 )
 # the same for keys of each contact
 _LATER_CONTACT_KEYS: tuple[tuple[str, Any], ...] = (
+    ("type", "flat"),
+    ("points", None),
     ("contact_geometry", "model"),
     ("schedule", None),
     ("unload", 0.1),
@@ -713,7 +715,11 @@ def check_against_robot(loaded: LoadedScenario, robot: Any) -> None:
         )
     for i, c in enumerate(spec.contacts):
         frame(f"contacts[{i}].frame", c.frame)
-        if c.cop is None and (robot.info is None or robot.info.sole_box(c.frame) is None):
+        if (
+            c.type == "flat"
+            and c.cop is None
+            and (robot.info is None or robot.info.sole_box(c.frame) is None)
+        ):
             raise ScenarioError(
                 file,
                 f"contacts[{i}].cop",
@@ -873,6 +879,19 @@ def sole_boxes(spec: Scenario, robot: Any) -> dict[str, tuple[float, float, floa
 
 
 def build_contact(c: ContactSpec, robot: Any) -> PlaneContact:
+    if c.type != "flat":
+        points = c.contact_points()
+        xs, ys = [p[0] for p in points], [p[1] for p in points]
+        return PlaneContact(
+            frame=c.frame,
+            x_range=(min(xs), max(xs)),
+            y_range=(min(ys), max(ys)),
+            mu=c.mu,
+            fmin=c.fmin,
+            facets=c.facets,
+            fmax=np.inf if c.fmax is None else c.fmax,
+            points=points,
+        )
     if c.cop is not None:
         x_range, y_range = c.cop.x, c.cop.y
     else:

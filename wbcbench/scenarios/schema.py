@@ -12,7 +12,15 @@ import typing
 from itertools import pairwise
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+import numpy as np
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 Vector = list[float]
 
@@ -246,10 +254,31 @@ class CopBox(Strict):
         return v
 
 
+#: how many points each contact type holds (None: any number from the minimum)
+CONTACT_POINTS = {"point": (1, 1), "line": (2, 2), "polygon": (3, None)}
+
+
 class ContactSpec(Strict):
-    """A plane contact held by a robot frame (reaction-on-robot convention: fmin > 0)."""
+    """A plane contact held by a robot frame (reaction-on-robot convention: fmin > 0).
+
+    ``type: flat`` (the default) holds a 6-D wrench whose centre of pressure stays in the
+    ``cop`` box; ``point``, ``line`` and ``polygon`` hold a 3-D force at each of their
+    ``points`` (1, 2, at least 3 non-collinear; in the frame [m]), each inside its friction
+    cone with at least ``fmin`` of normal force, and no moment: for feet that cannot hold a
+    6-D wrench (a leg without ankle roll).
+    """
 
     frame: str
+    type: Literal["flat", "point", "line", "polygon"] = Field(
+        "flat",
+        description="flat: a 6-D wrench with a CoP box; point / line / polygon: a 3-D force "
+        "at each of 'points'",
+    )
+    points: list[tuple[float, float, float]] | None = Field(
+        None,
+        description="the contact points [x, y, z] in the contact frame [m] (point: one, the "
+        "frame origin when omitted; line: two; polygon: three or more, not collinear)",
+    )
     mu: float = Field(0.5, gt=0, le=10)
     fmin: float = Field(30.0, ge=0, le=1e5, description="minimum normal force [N]")
     fmax: float | None = Field(None, gt=0, le=1e5, description="[N], at most 1e5")
@@ -272,6 +301,60 @@ class ContactSpec(Strict):
         description="what the simulation's foot is: the model's own geometry, or the sole box "
         "(the cop box, or the robot's sole size) at the contact frame in its place",
     )
+
+    @field_validator("points")
+    @classmethod
+    def _points_fit_type(
+        cls, v: list[tuple[float, float, float]] | None, info: ValidationInfo
+    ) -> list[tuple[float, float, float]] | None:
+        kind = info.data.get("type", "flat")
+        if v is None:
+            return v
+        if kind == "flat":
+            raise ValueError(
+                "a flat contact has no points (it holds a 6-D wrench over its 'cop' box); "
+                "give type: point, line or polygon to hold forces at points"
+            )
+        lo, hi = CONTACT_POINTS[kind]
+        if len(v) < lo or (hi is not None and len(v) > hi):
+            wanted = f"{lo}" if lo == hi else f"at least {lo}"
+            raise ValueError(f"a {kind} contact has {wanted} point(s), got {len(v)}")
+        pts = np.asarray(v, dtype=float)
+        if kind == "line" and np.linalg.norm(pts[1] - pts[0]) < 1e-6:
+            raise ValueError(f"the two points of a line contact coincide: {[list(p) for p in v]}")
+        if kind == "polygon" and np.linalg.matrix_rank(pts[1:] - pts[0], tol=1e-6) < 2:
+            raise ValueError(
+                f"the points of a polygon contact are collinear: {[list(p) for p in v]}; "
+                "give type: line with two of them"
+            )
+        return v
+
+    @model_validator(mode="after")
+    def _type_keys(self) -> ContactSpec:
+        if self.type == "flat":
+            return self
+        if self.points is None and self.type != "point":
+            raise ValueError(
+                f"a {self.type} contact needs 'points': [[x, y, z], …] in the frame [m]"
+            )
+        for key in ("cop", "mu_yaw"):
+            if getattr(self, key) is not None:
+                raise ValueError(
+                    f"'{key}' is a flat contact's; a {self.type} contact holds no moment "
+                    "(its points bound its centre of pressure): remove it"
+                )
+        if self.contact_geometry == "box":
+            raise ValueError(
+                f"contact_geometry: box needs a flat contact; a {self.type} contact is "
+                "simulated with the model's geometry (contact_geometry: model)"
+            )
+        return self
+
+    def contact_points(self) -> tuple[tuple[float, float, float], ...]:
+        """The points of a point, line or polygon contact (the origin for a bare point)."""
+        if self.points is None:
+            return ((0.0, 0.0, 0.0),)
+        return tuple((float(x), float(y), float(z)) for x, y, z in self.points)
 
 
 class FrameSpec(Strict):

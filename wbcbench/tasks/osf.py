@@ -53,6 +53,7 @@ from wbcbench.dynamics.dense import (
 )
 from wbcbench.dynamics.state import RobotState
 from wbcbench.errors import ControllerError
+from wbcbench.tasks.contacts import PlaneContact
 from wbcbench.tasks.tasks import Task
 
 Inverse = Literal["cod", "svd", "pinv"]
@@ -193,8 +194,9 @@ class ContactDynamics:
     f0: np.ndarray
 
 
-def contact_dynamics(state: RobotState, frames: Sequence[str]) -> ContactDynamics:
-    """Λ_c, J̄_c, Φ, W, q̈₀ and the wrench map at ``state`` for the plane contacts ``frames``."""
+def contact_dynamics(state: RobotState, frames: Sequence[str | PlaneContact]) -> ContactDynamics:
+    """Λ_c, J̄_c, Φ, W, q̈₀ and the wrench map at ``state`` for the contacts ``frames`` (a frame
+    name is a flat contact; a point set's rows are redundant: several points on one body)."""
     n, k = state.n, state.k
     Minv, h = state.Minv, state.h
     Jc = state.contact_jacobian(list(frames))
@@ -207,10 +209,14 @@ def contact_dynamics(state: RobotState, frames: Sequence[str]) -> ContactDynamic
             np.zeros((0, 0)), z.T, Phi, Phi[6:, 6:], np.eye(n)[6:], -Minv @ h, z[:, 6:], np.zeros(0)
         )
     B = Minv @ Jc.T  # (n, c)
-    try:
-        Lambda_c = spd_inverse(Jc @ B)
-    except np.linalg.LinAlgError:  # redundant contacts: J_c rank-deficient
+    if any(not isinstance(f, str) and f.points is not None and len(f.points) > 1 for f in frames):
+        # several points on one body: J_c has dependent rows by construction
         Lambda_c, _ = psd_pinv(Jc @ B, "svd")
+    else:
+        try:
+            Lambda_c = spd_inverse(Jc @ B)
+        except np.linalg.LinAlgError:  # redundant contacts: J_c rank-deficient
+            Lambda_c, _ = psd_pinv(Jc @ B, "svd")
     Xt = Lambda_c @ B.T  # J̄_cᵀ (c, n)
     Phi = Minv - B @ Xt
     Phi = 0.5 * (Phi + Phi.T)
@@ -394,7 +400,8 @@ class OsfModel:
 
     Attributes:
         levels: the tasks of each priority level, highest first.
-        frames: contact frames (plane contacts, 6 rows each).
+        frames: the contacts: frame names (flat, 6 rows each) or contacts (3 rows per point of
+            a point set).
         kinds: ``acceleration`` or ``force`` per level.
         inverse: ``cod`` | ``svd`` | ``pinv``.
         coupling: ``exact`` | ``literal``.
@@ -403,7 +410,7 @@ class OsfModel:
     """
 
     levels: list[list[Task]]
-    frames: list[str]
+    frames: Sequence[str | PlaneContact]
     kinds: list[str] = field(default_factory=list)
     inverse: str = "cod"
     coupling: str = "exact"

@@ -169,7 +169,7 @@ class ContactSchedule:
     def scale_bounds(
         self,
         phase: ContactPhase,
-        rows: Sequence[int],
+        rows: Sequence[int | Sequence[int]],
         fmax: Sequence[float],
         lw: np.ndarray,
         uw: np.ndarray,
@@ -177,10 +177,13 @@ class ContactSchedule:
         out_u: np.ndarray,
     ) -> None:
         """Write the stacked wrench bounds of ``phase``'s contacts into ``out_l``/``out_u``:
-        ``lw``/``uw`` with each contact's normal-force row (``rows``, into the stack) scaled."""
+        ``lw``/``uw`` with each contact's normal-force row (``rows``, into the stack; a point
+        set's one row per point, which share the ramp's force) scaled."""
         out_l[:] = lw
         out_u[:] = uw
-        for j, row in enumerate(rows):
-            out_l[row] = lw[row] * phase.lower[j]
-            if phase.upper[j] < 1.0:
-                out_u[row] = phase.upper[j] * min(fmax[j], self.ramp_force)
+        for j, entry in enumerate(rows):
+            group = [int(entry)] if isinstance(entry, (int, np.integer)) else list(entry)
+            for row in group:
+                out_l[row] = lw[row] * phase.lower[j]
+                if phase.upper[j] < 1.0:
+                    out_u[row] = phase.upper[j] * min(fmax[j], self.ramp_force / len(group))

@@ -14,7 +14,8 @@ WBCBENCH_BIND(osf_hqp, kController, m) {
       .def(nb::init<>())
       .def_rw("regularization", &OsfHqpSettings::regularization)
       .def_rw("carry_tolerance", &OsfHqpSettings::carry_tolerance)
-      .def_rw("WtW", &OsfHqpSettings::WtW);
+      .def_rw("WtW", &OsfHqpSettings::WtW)
+      .def_rw("distribution", &OsfHqpSettings::distribution);
 
   nb::class_<OsfHqpTick, OsfTick>(m, "OsfHqpTick", "The OSF-HQP's tick.")
       .def(nb::init<const std::string&, const std::vector<std::string>&,

@@ -91,6 +91,9 @@ WBCBENCH_BIND(tick, kCore, m) {
 
   nb::class_<Tick>(m, "Tick", "Dynamics, tasks and stage times of a native controller.")
       .def_prop_ro("dynamics", &Tick::dynamics, kView)
+      .def("set_contact_points", &Tick::set_contact_points, nb::arg("points"), nb::arg("bases"),
+           "Contacts made of points: one (N, 3) array per contact frame, (0, 3) for a flat one, "
+           "and each one's (r, 3N) row basis, (0, 0) for a flat one; before configure()")
       .def_prop_ro("tasks", &Tick::tasks, kView)
       .def_prop_ro("dynamics_time", [](const Tick& t) { return t.times().dynamics; })
       .def_prop_ro("build_time", [](const Tick& t) { return t.times().build; });

@@ -38,12 +38,16 @@ void HqpTick::configure(const HqpSettings& settings) {
     throw std::invalid_argument("hqp: one priority per task group");
   if (static_cast<int>(s_.force_level.size()) != tasks_.size())
     throw std::invalid_argument("hqp: one force_level flag per task");
-  if (s_.finals.empty() || s_.level_weights.empty() || s_.wrench_weights.size() != 6)
-    throw std::invalid_argument("hqp: finals, level_weights and 6 wrench_weights needed");
+  if (s_.finals.empty() || s_.level_weights.empty() ||
+      (s_.wrench_weights.size() != 6 && s_.wrench_weights.size() != nc_))
+    throw std::invalid_argument(
+        "hqp: finals, level_weights and 6 wrench_weights (or one per wrench row) needed");
   // hard: M q̈ + h = Sᵀ Γ + J_cᵀ f, J_c q̈ + J̇_c q̇ = 0, the wrench inequalities, |Γ| ≤ Γ_max
-  hard_.A.setZero(n_ + nc_, nx);
+  // (J_c on the rows independent by construction: a point set's T J_c)
+  const int nk = static_cast<int>(dyn_.constraint_jacobian().rows());
+  hard_.A.setZero(n_ + nk, nx);
   hard_.A.block(6, n_, k_, k_).diagonal().setConstant(-1.0);
-  hard_.b.setZero(n_ + nc_);
+  hard_.b.setZero(n_ + nk);
   hard_.C.setZero(nw, nx);
   hard_.C.rightCols(nc_) = s_.Cw;
   hard_.l = s_.lw;
@@ -75,7 +79,7 @@ void HqpTick::configure(const HqpSettings& settings) {
       case HqpFinal::kWrench:  // ‖W_c f‖²
         f.name = "wrench";
         f.A.setZero(nc_, nx);
-        for (int j = 0; j < nc_; ++j) f.A(j, n_ + k_ + j) = s_.wrench_weights(j % 6);
+        for (int j = 0; j < nc_; ++j) f.A(j, n_ + k_ + j) = s_.wrench_weights(j % s_.wrench_weights.size());
         f.b.setZero(nc_);
         break;
       case HqpFinal::kAccelerationEnergy:  // ‖Lᵀ q̈‖² = q̈ᵀ M q̈, filled every tick
@@ -113,8 +117,8 @@ bool HqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vect
   hard_.A.topLeftCorner(n_, n_) = M;
   hard_.A.block(0, n_ + k_, n_, nc_) = -Jc.transpose();
   hard_.b.head(n_) = -h;
-  hard_.A.block(n_, 0, nc_, n_) = Jc;
-  hard_.b.tail(nc_) = -dJc;
+  hard_.A.bottomLeftCorner(hard_.A.rows() - n_, n_) = dyn_.constraint_jacobian();
+  hard_.b.tail(hard_.b.size() - n_) = -dyn_.constraint_drift();
   const Matrix& J = tasks_.J();
   for (int i = 0; i < n_levels_; ++i) {
     PriorityLevel& lv = soft_[i];

@@ -11,11 +11,12 @@ bool dynamics_finite(const RobotDynamics& dyn, const TaskSet& tasks) {
          tasks.drift().allFinite() && tasks.acc_ref().allFinite();
 }
 
-void FullLqp::configure(const LexicographicSettings& settings, int n, int nc) {
+void FullLqp::configure(const LexicographicSettings& settings, int n, int nc, int nk) {
   s_ = settings;
   n_ = n;
   k_ = n - 6;
   nc_ = nc;
+  nk_ = nk;
   const int nx = n + nc;
   const int nw = static_cast<int>(s_.Cw.rows());
   if (s_.tau_max.size() != k_) throw std::invalid_argument("lqp: tau_max of wrong size");
@@ -38,8 +39,8 @@ void FullLqp::configure(const LexicographicSettings& settings, int n, int nc) {
   // priority 2: stationary contacts, the wrench inequalities and the q̈ limits
   PriorityLevel contacts;
   contacts.name = prefix_ + "contacts";
-  contacts.A.setZero(nc_, nx);
-  contacts.b.setZero(nc_);
+  contacts.A.setZero(nk_, nx);
+  contacts.b.setZero(nk_);
   contacts.C.setZero(nw + k_, nx);
   contacts.C.block(0, n_, nw, nc_) = s_.Cw;
   contacts.C.block(nw, 6, k_, k_).setIdentity();
@@ -89,8 +90,8 @@ bool FullLqp::solve(const RobotDynamics& dyn, const TaskSet& tasks, LevelSolver&
   hard_.l = -s_.tau_max - gamma_;
   hard_.u = s_.tau_max - gamma_;
   PriorityLevel& contacts = levels_[0];
-  contacts.A.leftCols(n_) = Jc;
-  contacts.b = -dyn.contact_drift();
+  contacts.A.leftCols(n_) = dyn.constraint_jacobian();
+  contacts.b = -dyn.constraint_drift();
   for (size_t p = 0; p < s_.groups.size(); ++p) {
     PriorityLevel& lv = levels_[p + 1];
     int rows = 0;
@@ -132,7 +133,8 @@ LqpTick::LqpTick(const std::string& model, const std::vector<std::string>& task_
 }
 
 void LqpTick::configure(const LexicographicSettings& settings) {
-  lqp_.configure(settings, nv(), static_cast<int>(dyn_.contact_jacobian().rows()));
+  lqp_.configure(settings, nv(), static_cast<int>(dyn_.contact_jacobian().rows()),
+                 static_cast<int>(dyn_.constraint_jacobian().rows()));
 }
 
 bool LqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t,

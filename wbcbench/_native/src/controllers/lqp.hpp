@@ -32,7 +32,8 @@ class FullLqp {
  public:
   // pool: the id the hierarchy's solves carry; prefix: put before every level name
   explicit FullLqp(int pool = 0, std::string prefix = "") : hierarchy_(pool), prefix_(prefix) {}
-  void configure(const LexicographicSettings& settings, int n, int nc);
+  // nc: the contact rows (force variables); nk: the independent ones (constraint rows)
+  void configure(const LexicographicSettings& settings, int n, int nc, int nk);
   // the hierarchy at this tick's dynamics and tasks; false when a level failed (failed_level)
   // or the data hold a NaN (failed_level empty)
   bool solve(const RobotDynamics& dyn, const TaskSet& tasks, LevelSolver& solver);
@@ -48,7 +49,7 @@ class FullLqp {
 
  private:
   LexicographicSettings s_;
-  int n_ = 0, k_ = 0, nc_ = 0;
+  int n_ = 0, k_ = 0, nc_ = 0, nk_ = 0;
   Hierarchy hierarchy_;
   std::string prefix_;
   HardConstraints hard_;

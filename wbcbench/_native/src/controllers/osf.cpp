@@ -44,7 +44,8 @@ void OsfTick::configure_osf(const OsfSettings& s, bool affine) {
   model_ = std::make_unique<OsfModel>(spec);
   worker_.reset();
   if (s.asynchronous)  // made here, so that no tick pays for loading its model
-    worker_ = std::make_unique<ParamsWorker>(model_text_, task_frames_, contact_frames_, tasks_,
+    worker_ = std::make_unique<ParamsWorker>(model_text_, task_frames_, contact_frames_,
+                                             dyn_.contact_points(), dyn_.contact_bases(), tasks_,
                                              spec);
   have_params_ = false;
   tick_ = -1;

@@ -18,7 +18,7 @@ void OsfHqpTick::configure(const OsfHqpSettings& settings) {
   if (s_.WtW.rows() != nc_ || s_.WtW.cols() != nc_)
     throw std::invalid_argument("osf_hqp: WtW of wrong size");
   // the wrench-distribution space of independent plane contacts: dim null(W) = c − 6
-  np_ = nc_ > 6 ? nc_ - 6 : 0;
+  np_ = s_.distribution >= 0 ? s_.distribution : (nc_ > 6 ? nc_ - 6 : 0);
   const int L = levels(), kk = k();
   qps_.clear();
   qps_.reserve(L + 1);  // the buffers' addresses never change after this

@@ -11,7 +11,10 @@ namespace wbcbench {
 struct OsfHqpSettings : OsfSettings {
   double regularization = 1e-6;
   double carry_tolerance = 1e-6;
-  Matrix WtW;                   // W_cᵀ W_c (6c, 6c)
+  Matrix WtW;                   // W_cᵀ W_c (c, c)
+  // dim null(W), the wrench-distribution space: −1 for independent plane contacts (c − 6);
+  // contacts with dependent rows (point sets) give it from their rank at the first state
+  int distribution = -1;
 };
 
 class OsfHqpTick : public OsfTick {

@@ -23,7 +23,9 @@ class ParamsWorker {
   // The worker's own dynamics (a second Pinocchio model and data, from the same serialised
   // model), a copy of the started tasks, and the parameters' model.
   ParamsWorker(const std::string& model, const std::vector<std::string>& task_frames,
-               const std::vector<std::string>& contact_frames, const TaskSet& tasks,
+               const std::vector<std::string>& contact_frames,
+               const std::vector<Matrix>& contact_points,
+               const std::vector<Matrix>& contact_bases, const TaskSet& tasks,
                const OsfModelSpec& spec);
   ~ParamsWorker();  // stops and joins the thread
   ParamsWorker(const ParamsWorker&) = delete;

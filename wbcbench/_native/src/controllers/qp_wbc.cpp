@@ -15,6 +15,7 @@ void QpWbcTick::configure(const QpWbcSettings& settings) {
   n_ = nv();
   k_ = k();
   nc_ = static_cast<int>(dyn_.contact_jacobian().rows());
+  nk_ = static_cast<int>(dyn_.constraint_jacobian().rows());
   const int nw = static_cast<int>(s_.Cw.rows());
   if (s_.row_weights.size() != tasks_.rows())
     throw std::invalid_argument("qp_wbc: one weight per task row");
@@ -28,7 +29,7 @@ void QpWbcTick::configure(const QpWbcSettings& settings) {
   wrench_.setZero(nc_);
   if (!s_.eliminated) {  // x = (q̈, Γ, f)
     nx_ = n_ + k_ + nc_;
-    qp_.resize(nx_, n_ + nc_, nw, true);
+    qp_.resize(nx_, n_ + nk_, nw, true);
     qp_.H.block(n_, n_, k_, k_).diagonal().setConstant(s_.torque_weight);
     qp_.H.block(n_ + k_, n_ + k_, nc_, nc_).diagonal().setConstant(s_.wrench_weight);
     qp_.A.block(6, n_, k_, k_).diagonal().setConstant(-1.0);
@@ -39,7 +40,7 @@ void QpWbcTick::configure(const QpWbcSettings& settings) {
     qp_.ub.segment(n_, k_) = s_.tau_max;
   } else {  // x = (q̈, f), Γ = G x + γ from the actuated rows of the dynamics
     nx_ = n_ + nc_;
-    qp_.resize(nx_, 6 + nc_, nw + k_, false);
+    qp_.resize(nx_, 6 + nk_, nw + k_, false);
     qp_.C.topRightCorner(nw, nc_) = s_.Cw;
     qp_.l.head(nw) = s_.lw;
     qp_.u.head(nw) = s_.uw;
@@ -55,7 +56,9 @@ bool QpWbcTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
   const Matrix& M = dyn_.M();
   const Vector& h = dyn_.h();
   const Matrix& Jc = dyn_.contact_jacobian();
-  const Vector& dJc = dyn_.contact_drift();
+  // J_c q̈ + J̇_c q̇ = 0 on the rows independent by construction
+  const Matrix& Jk = dyn_.constraint_jacobian();
+  const Vector& dJk = dyn_.constraint_drift();
   const Matrix& J = tasks_.J();
 
   // Σ w Jᵀ J + w_q̈ I and −Σ w Jᵀ (ẍ* − J̇ q̇)
@@ -70,8 +73,8 @@ bool QpWbcTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
     qp_.A.topLeftCorner(n_, n_) = M;
     qp_.A.block(0, n_ + k_, n_, nc_) = -Jc.transpose();
     qp_.b.head(n_) = -h;
-    qp_.A.block(n_, 0, nc_, n_) = Jc;
-    qp_.b.tail(nc_) = -dJc;
+    qp_.A.block(n_, 0, nk_, n_) = Jk;
+    qp_.b.tail(nk_) = -dJk;
   } else {
     G_.leftCols(n_) = M.bottomRows(k_);
     G_.rightCols(nc_) = -Jc.rightCols(k_).transpose();
@@ -86,8 +89,8 @@ bool QpWbcTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
     qp_.A.topLeftCorner(6, n_) = M.topRows(6);
     qp_.A.topRightCorner(6, nc_) = -Jc.leftCols(6).transpose();
     qp_.b.head(6) = -h.head(6);
-    qp_.A.bottomLeftCorner(nc_, n_) = Jc;
-    qp_.b.tail(nc_) = -dJc;
+    qp_.A.bottomLeftCorner(nk_, n_) = Jk;
+    qp_.b.tail(nk_) = -dJk;
     qp_.C.bottomRows(k_) = G_;
     qp_.l.tail(k_) = -s_.tau_max - gamma_;
     qp_.u.tail(k_) = s_.tau_max - gamma_;

@@ -34,7 +34,7 @@ class QpWbcTick : public Tick {
 
  private:
   QpWbcSettings s_;
-  int n_ = 0, k_ = 0, nc_ = 0, nx_ = 0;
+  int n_ = 0, k_ = 0, nc_ = 0, nk_ = 0, nx_ = 0;
   QpBuffers qp_;
   Matrix JW_;          // task rows scaled by their weights (rows, n)
   Vector r_;           // ẍ* − J̇ q̇ of every task row

@@ -78,7 +78,7 @@ void RcLqpTick::configure(const LexicographicSettings& settings, const RcLqpSett
     throw std::invalid_argument("rc_lqp: one priority per task group");
   if (s_.weights.empty()) throw std::invalid_argument("rc_lqp: weights must not be empty");
   if (n_p_ < 6) throw std::invalid_argument("rc_lqp: the plain coordinates must hold the base");
-  fallback_.configure(settings, n_, nc_);
+  fallback_.configure(settings, n_, nc_, static_cast<int>(dyn_.constraint_jacobian().rows()));
 
   plain_ = reduced_.split().plain;
   uc_ = reduced_.unconstrained();
@@ -254,9 +254,16 @@ int RcLqpTick::lqp1_levels(std::vector<PriorityLevel>& levels, bool with_preview
   int count = 0;
   PriorityLevel& contacts = level_at(levels, count++);
   contacts.name = "lqp1.contacts";
-  contacts.A.setZero(nc_, nx1_);
-  contacts.A.leftCols(n_r_) = reduced_.J_cr();
-  contacts.b = -dyn_.contact_drift();
+  if (dyn_.constraint_map().size() == 0) {
+    contacts.A.setZero(nc_, nx1_);
+    contacts.A.leftCols(n_r_) = reduced_.J_cr();
+    contacts.b = -dyn_.contact_drift();
+  } else {  // a point set's independent rows
+    const Matrix& T = dyn_.constraint_map();
+    contacts.A.setZero(T.rows(), nx1_);
+    contacts.A.leftCols(n_r_).noalias() = T * reduced_.J_cr();
+    contacts.b = -dyn_.constraint_drift();
+  }
   contacts.C = C2_;
   contacts.l = l2_;
   contacts.u = u2_;

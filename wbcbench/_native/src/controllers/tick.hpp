@@ -36,6 +36,10 @@ class Tick {
   const StageTimes& times() const { return times_; }
   int nv() const { return dyn_.nv(); }
   int k() const { return dyn_.nv() - 6; }
+  // contacts made of points (RobotDynamics::set_contact_points); before configure()
+  void set_contact_points(const std::vector<Matrix>& points, const std::vector<Matrix>& bases) {
+    dyn_.set_contact_points(points, bases);
+  }
 
  protected:
   // dynamics and tasks at (q, v, t); times the dynamics stage

@@ -141,6 +141,12 @@ void ToOsfTick::finish(const Eigen::Ref<const Vector>& x) {
   Vector dist = Vector::Zero(k());
   if (nc_) dist.noalias() = params_.Yw * f_opt_;
   realise(dist);
+  if (nc_ && dyn_.contact_rows_redundant()) {
+    // the QP's distribution: F_opt's part no torque produces (forces along a line contact,
+    // which change no wrench at the frame) is the one that holds each point in its cone
+    wrench_ += f_opt_;
+    wrench_.noalias() -= params_.Qf * (params_.Qf.transpose() * f_opt_);
+  }
   times_.build += seconds_since(t0);
 }
 

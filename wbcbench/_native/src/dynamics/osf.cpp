@@ -128,7 +128,8 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
     const Matrix B = Minv * Jc.transpose();  // (n, c)
     const Matrix JcB = Jc * B;
     Matrix Lc;
-    if (!spd_inverse(JcB, Lc)) psd_pinv(JcB, true, 1e-9, 0.0, Lc);  // redundant contacts
+    // redundant contacts (several points on one frame: by construction) by the SVD
+    if (dyn.contact_rows_redundant() || !spd_inverse(JcB, Lc)) psd_pinv(JcB, true, 1e-9, 0.0, Lc);
     Xt.noalias() = Lc * B.transpose();
     Phi = Minv;
     Phi.noalias() -= B * Xt;

@@ -72,6 +72,8 @@ RobotDynamics::RobotDynamics(const std::string& model,
   com_.setZero(3);
   acom_.setZero(3);
   dJv_contact_.setZero(nc);
+  contact_points_.assign(contact_frames.size(), Matrix::Zero(0, 3));
+  contact_bases_.assign(contact_frames.size(), Matrix::Zero(0, 0));
   J_task_.assign(task_frames.size(), Matrix::Zero(6, nv));
   dJv_task_.assign(task_frames.size(), Vector::Zero(6));
   p_task_.assign(task_frames.size(), Vector::Zero(3));
@@ -92,6 +94,46 @@ void RobotDynamics::set_kinematic_frames(const std::vector<int>& frame_ids) {
   J_kin_.assign(frame_ids.size(), Matrix::Zero(6, m.nv));
   p_kin_.assign(frame_ids.size(), Vector::Zero(3));
   R_kin_.assign(frame_ids.size(), Matrix::Identity(3, 3));
+}
+
+void RobotDynamics::set_contact_points(const std::vector<Matrix>& points,
+                                      const std::vector<Matrix>& bases) {
+  if (points.size() != impl_->contact_ids.size() || bases.size() != points.size())
+    throw std::invalid_argument("set_contact_points: one points and one basis per contact frame");
+  int rows = 0, independent = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Matrix& p = points[i];
+    if (p.cols() != 3) throw std::invalid_argument("set_contact_points: points are (N, 3)");
+    const int m = p.rows() == 0 ? 6 : 3 * static_cast<int>(p.rows());
+    if (p.rows() > 0 && bases[i].cols() != m)
+      throw std::invalid_argument("set_contact_points: a point set's basis is (r, 3N)");
+    rows += m;
+    independent += p.rows() == 0 ? 6 : static_cast<int>(bases[i].rows());
+  }
+  contact_points_ = points;
+  contact_bases_ = bases;
+  redundant_ = std::any_of(points.begin(), points.end(), [](const Matrix& p) { return p.rows() > 0; });
+  J_contact_.setZero(rows, impl_->model.nv);
+  dJv_contact_.setZero(rows);
+  J_k_.setZero(independent, impl_->model.nv);
+  dJv_k_.setZero(independent);
+  T_.setZero(redundant_ ? independent : 0, redundant_ ? rows : 0);
+  for (size_t i = 0, row = 0, out = 0; redundant_ && i < points.size(); ++i) {
+    if (points[i].rows() == 0) {
+      T_.block(out, row, 6, 6).setIdentity();
+      row += 6;
+      out += 6;
+    } else {
+      T_.block(out, row, bases[i].rows(), bases[i].cols()) = bases[i];
+      row += bases[i].cols();
+      out += bases[i].rows();
+    }
+  }
+}
+
+bool RobotDynamics::contact_rows_redundant() const {
+  return std::any_of(contact_points_.begin(), contact_points_.end(),
+                     [](const Matrix& p) { return p.rows() > 1; });
 }
 
 int RobotDynamics::nq() const { return impl_->model.nq; }
@@ -187,12 +229,45 @@ double RobotDynamics::update(const Eigen::Ref<const Vector>& q_in,
     R_task_[i] = d.oMf[fid].rotation();
   }
  
-  for (size_t i = 0; i < impl_->contact_ids.size(); ++i) {
+  for (size_t i = 0, row = 0; i < impl_->contact_ids.size(); ++i) {
     const auto fid = impl_->contact_ids[i];
     impl_->jacobian.setZero();
     pin::getFrameJacobian(m, d, fid, pin::LOCAL, impl_->jacobian);
-    J_contact_.middleRows(6 * i, 6) = impl_->jacobian;
-    dJv_contact_.segment(6 * i, 6) = pin::getFrameAcceleration(m, d, fid, pin::LOCAL).toVector();
+    const pin::Motion acc = pin::getFrameAcceleration(m, d, fid, pin::LOCAL);
+    const Matrix& points = contact_points_[i];
+    if (points.rows() == 0) {
+      J_contact_.middleRows(row, 6) = impl_->jacobian;
+      dJv_contact_.segment(row, 6) = acc.toVector();
+      row += 6;
+      continue;
+    }
+    // a point p of the frame: v_p = v + ω × p, a_p = a + α × p + ω × (v + ω × p) (classical)
+    const pin::Motion vel = pin::getFrameVelocity(m, d, fid, pin::LOCAL);
+    const Eigen::Vector3d w = vel.angular();
+    for (Eigen::Index j = 0; j < points.rows(); ++j, row += 3) {
+      const Eigen::Vector3d p = points.row(j).transpose();
+      J_contact_.middleRows(row, 3) = impl_->jacobian.topRows<3>();
+      Eigen::Matrix3d p_cross;  // [p]×
+      p_cross << 0.0, -p.z(), p.y(), p.z(), 0.0, -p.x(), -p.y(), p.x(), 0.0;
+      J_contact_.middleRows(row, 3).noalias() -= p_cross * impl_->jacobian.bottomRows<3>();
+      const Eigen::Vector3d vp = vel.linear() + w.cross(p);
+      dJv_contact_.segment<3>(row) = acc.linear() + acc.angular().cross(p) + w.cross(vp);
+    }
+  }
+  // the independent rows (RobotState.contact_constraint)
+  for (size_t i = 0, row = 0, out = 0; redundant_ && i < contact_points_.size(); ++i) {
+    if (contact_points_[i].rows() == 0) {
+      J_k_.middleRows(out, 6) = J_contact_.middleRows(row, 6);
+      dJv_k_.segment(out, 6) = dJv_contact_.segment(row, 6);
+      row += 6;
+      out += 6;
+      continue;
+    }
+    const Matrix& T = contact_bases_[i];
+    J_k_.middleRows(out, T.rows()).noalias() = T * J_contact_.middleRows(row, T.cols());
+    dJv_k_.segment(out, T.rows()).noalias() = T * dJv_contact_.segment(row, T.cols());
+    row += T.cols();
+    out += T.rows();
   }
 
   for (size_t i = 0; i < impl_->kinematic_ids.size(); ++i) {

@@ -45,8 +45,27 @@ class RobotDynamics {
   const Vector& task_drift(int i) const { return dJv_task_.at(i); }   // (6,)
   const Vector& task_position(int i) const { return p_task_.at(i); }  // (3,) world
   const Matrix& task_rotation(int i) const { return R_task_.at(i); }  // (3, 3) world
-  const Matrix& contact_jacobian() const { return J_contact_; }      // (6c, nv)
-  const Vector& contact_drift() const { return dJv_contact_; }       // (6c,)
+  const Matrix& contact_jacobian() const { return J_contact_; }      // (Σ dim, nv)
+  const Vector& contact_drift() const { return dJv_contact_; }       // (Σ dim,)
+  // Contacts made of points (RobotState.contact_jacobian with point sets): one (N, 3) matrix
+  // per contact frame, the points in the frame, or (0, 3) for a flat contact (6 rows, its
+  // LOCAL Jacobian). A point's rows are its linear velocity in the frame's axes (3 rows), its
+  // drift the point's classical acceleration at zero q̈. `bases`: per contact, the (r, 3N)
+  // orthonormal basis T of its rows' range (dynamics.state.contact_basis), (0, 0) for a flat
+  // one. Set-up only: sizes the buffers.
+  void set_contact_points(const std::vector<Matrix>& points, const std::vector<Matrix>& bases);
+  const std::vector<Matrix>& contact_points() const { return contact_points_; }
+  const std::vector<Matrix>& contact_bases() const { return contact_bases_; }
+  // RobotState.contact_constraint: the rows of J_c q̈ + J̇_c q̇ = 0 that are independent by
+  // construction (T times a point set's rows; a flat contact's 6); the contact Jacobian and
+  // drift themselves when every contact is flat
+  const Matrix& constraint_jacobian() const { return redundant_ ? J_k_ : J_contact_; }
+  const Vector& constraint_drift() const { return redundant_ ? dJv_k_ : dJv_contact_; }
+  // the block-diagonal map (nk, Σ dim) from the contact rows to the independent ones
+  // (contact_selector); empty when every contact is flat
+  const Matrix& constraint_map() const { return T_; }
+  // several points on one frame: the contact rows are dependent by construction
+  bool contact_rows_redundant() const;
   // Frames given by Pinocchio id rather than by name (a body that a site of the same name
   // would shadow, as RobotState.placement(frame_id) and RobotState.jacobian(frame_id) read
   // them), whose world placement and world-aligned Jacobian every update() computes (no
@@ -93,6 +112,11 @@ class RobotDynamics {
   std::vector<Vector> dJv_task_, p_task_;
   std::vector<Matrix> R_task_;
   std::vector<Matrix> J_kin_, R_kin_;
+  std::vector<Matrix> contact_points_;  // per contact: (N, 3), or (0, 3) for a flat one
+  std::vector<Matrix> contact_bases_;   // per contact: (r, 3N), or (0, 0) for a flat one
+  bool redundant_ = false;              // some contact is a point set
+  Matrix J_k_, T_;
+  Vector dJv_k_;
   std::vector<Vector> p_kin_;
   bool with_inverse_ = true;
 };
