@@ -237,6 +237,11 @@ BACKEND_VERDICT = re.compile(
 #: side), a cause the margin does not measure, not explained yet (docs/native.md)
 OUTSIDE_BAND = {("hqp", "clarabel")}
 
+#: qpOASES's own initialisation giving up (its initial homotopy, not a verdict on the level's
+#: feasibility): it may end so on a level with room to spare (measured: lqp, the wall state,
+#: native, under OPENBLAS_CORETYPE=Prescott, margin 0.125), so it is not held to the band
+QPOASES_INIT_FAILED = re.compile(r"Initialisation failed! QP could not be solved!$")
+
 
 #: the band of feasibility margins inside which the two impls may disagree on whether a step
 #: is feasible, for a backend asked for ``accuracy``: a level QP whose feasible set reaches less
@@ -357,7 +362,9 @@ def test_native_equals_python(
             failed, answer = (a, b) if not a.ok else (b, a)
             assert BACKEND_VERDICT.search(failed.message), failed.message
             level, margins = failed_level_margins(a, b, nat.native_problems(), recorder.problems)
-            if (name, backend) not in OUTSIDE_BAND:
+            if (name, backend) not in OUTSIDE_BAND and not QPOASES_INIT_FAILED.search(
+                failed.message
+            ):
                 assert in_band(a, margins, solver), (failed.message, level, margins)
             assert base_residual(robot, q, v, answer, frames) <= 1e-6
             assert np.all(np.abs(answer.tau) <= nat.ctx.tau_max * (1 + 1e-6) + 1e-6)
