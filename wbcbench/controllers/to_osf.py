@@ -114,17 +114,8 @@ class OsfControllerBase(NativeController):
         super().__init__(ctx, config)
         cfg = self.config
         self.frames = ctx.contact_frames
-        self.levels = group_levels(ctx.tasks)
-        self.kinds = level_kinds(self.levels)
-        self.model = OsfModel(
-            self.levels,
-            self.contacts,
-            self.kinds,
-            inverse=cfg.inverse,
-            coupling=cfg.coupling,
-            rcond=cfg.rcond,
-            affine=self.affine,
-        )
+        self.group_tasks(ctx.tasks)
+        self.model = self.osf_model()
         if ctx.schedule is not None and parse_params_mode(cfg.params).kind == "async":
             raise ControllerError(
                 f"{self.name}: params async does not follow a contact schedule (its worker "
@@ -141,7 +132,19 @@ class OsfControllerBase(NativeController):
                 f"valid choices: {', '.join(sorted(names))}"
             )
         self.tick = 0
-        self.group_tasks(ctx.tasks)
+
+    def osf_model(self) -> OsfModel:
+        """The OSF model of the present levels and contact set."""
+        cfg = self.config
+        return OsfModel(
+            self.levels,
+            self.contacts,
+            self.kinds,
+            inverse=cfg.inverse,
+            coupling=cfg.coupling,
+            rcond=cfg.rcond,
+            affine=self.affine,
+        )
 
     def group_tasks(self, tasks: list[Task]) -> None:
         """The levels of ``tasks``, their kinds, acceleration bounds and level order."""
@@ -158,19 +161,10 @@ class OsfControllerBase(NativeController):
     def contacts_changed(self) -> None:
         """The OSF model and a fresh parameter server for the new contact set: the parameters
         of the old set are never used (a periodic server computes its first set at once)."""
-        cfg = self.config
         self.server.close()
         self.group_tasks(self.active_tasks)
-        self.model = OsfModel(
-            self.levels,
-            self.contacts,
-            self.kinds,
-            inverse=cfg.inverse,
-            coupling=cfg.coupling,
-            rcond=cfg.rcond,
-            affine=self.affine,
-        )
-        self.server = ParameterServer(self.model, cfg.params, self.ctx.robot)
+        self.model = self.osf_model()
+        self.server = ParameterServer(self.model, self.config.params, self.ctx.robot)
         self.wrench_weighting()
 
     def wrench_weighting(self) -> None:
@@ -481,8 +475,9 @@ class ToOsf(OsfControllerBase):
         rho_ref = np.concatenate(refs)
         nr = rho_ref.size
         # F_opt = N w: N a basis of G's null space (internal_basis), or F_opt itself (N = I)
-        N = internal_basis(p.G) if self.uses_basis() else None
-        if N is None and self.uses_basis():
+        basis = self.uses_basis()
+        N = internal_basis(p.G) if basis else None
+        if N is None and basis:
             return self.failed(timer, read, terms, SINGULAR_BASIS, [])
         nw = nc if N is None else N.shape[1]
         nx = nr + nw
