@@ -4,7 +4,6 @@
 #include <limits>
 #include <stdexcept>
 
-#include <Eigen/LU>
 
 namespace wbcbench {
 
@@ -89,10 +88,7 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
   }
   qp_.C.topLeftCorner(kk, nr_) = p.K;
   if (basis_) {
-    if (nf_ > 0) {
-      YwN_.noalias() = p.Yw * N_;
-      qp_.C.topRightCorner(kk, nf_) = YwN_;
-    }
+    if (nf_ > 0) qp_.C.topRightCorner(kk, nf_).noalias() = p.Yw * N_;
   } else {
     qp_.C.topRightCorner(kk, nc_) = p.Yw;
   }
@@ -116,9 +112,9 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
 
 bool ToOsfTick::internal_basis() {
   const Matrix& G = params_.G;
-  const Eigen::PartialPivLU<Matrix> lu(G.leftCols(6));
-  if (!(lu.rcond() > 1e-12)) return false;
-  if (nf_ > 0) N_.topRows(6).noalias() = -lu.solve(G.rightCols(nf_));
+  lu_.compute(G.leftCols(6));  // (the member keeps its storage from tick to tick)
+  if (!(lu_.rcond() > 1e-12)) return false;
+  if (nf_ > 0) N_.topRows(6).noalias() = -lu_.solve(G.rightCols(nf_));
   return true;
 }
 

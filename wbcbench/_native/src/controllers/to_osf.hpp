@@ -2,6 +2,8 @@
 // references and an internal wrench.
 #pragma once
 
+#include <Eigen/LU>
+
 #include "controllers/osf.hpp"
 
 namespace wbcbench {
@@ -33,7 +35,8 @@ class ToOsfTick : public OsfTick {
   ToOsfSettings s_;
   int nx_ = 0, nf_ = 0;   // variables; F_opt's part of them (c, or c − 6 with a basis)
   bool basis_ = false;    // this configuration parametrises F_opt by a basis N
-  Matrix N_, YwN_;
+  Matrix N_;
+  Eigen::PartialPivLU<Matrix> lu_;  // of G's first contact block
   double scale_ = 1.0, w_f_ = 1.0;
   Vector D_, h_task_, rho_, f_opt_, fc_, prev_;
   Matrix Af_, SA_;
