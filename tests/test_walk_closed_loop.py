@@ -53,3 +53,53 @@ def test_a_touchdown_that_never_happens_ends_the_run() -> None:
         "the touchdown of contact 'l_sole' scheduled at t = 0.900 s did not happen: its foot "
         "carried less than 5000 N until t = 0.952 s (sim.touchdown_tolerance = 0.05 s)"
     ), result.message
+
+
+def test_a_stored_walk_has_its_metrics_table_and_figure(tmp_path) -> None:
+    from wbcbench.bench.results import ResultsStore
+    from wbcbench.bench.runner import compute_tracking, store_record
+    from wbcbench.report.load import load_results
+    from wbcbench.report.plots import walk_figures
+    from wbcbench.report.tables import TABLES
+
+    run = plan_run("tocabi_walk", "qp_wbc", "daqp", overrides=SHORT)
+    record = compute_tracking(run, "walk-run", "test")
+    assert record.row["status"] == "ok", record.row["message"]
+    store_record(ResultsStore(tmp_path), run, record)
+    res = load_results(tmp_path)
+    metric = res.metrics.set_index("metric")["value"]
+    # the measured DCM follows the plan's; the CoP margin is the CoP check's violation seen from
+    # inside (the same ticks: settled and loaded), here within 1 mm of the edge at worst
+    assert 0 < metric["dcm_error_mean"] < 0.02
+    assert metric["dcm_error_max"] >= metric["dcm_error_mean"]
+    assert -1e-3 < metric["cop_margin_min"] < metric["cop_margin_mean"] < 0.1
+    assert max(0.0, -metric["cop_margin_min"]) == metric["cop_violation_sim"]
+    # the soles hold: a few mm of soft-contact creep at most
+    assert 0 <= metric["slip_max"] < 5e-3
+    # a landing's error splits into its horizontal and vertical parts
+    landings = record.walk["landings"] if record.walk else []
+    assert len(landings) == 2 and set(record.walk or {}) >= {"soles", "footsteps"}
+    for landing in landings:
+        assert np.hypot(landing["error_xy"], landing["error_z"]) == np.float64(landing["error"])
+    assert metric["landing_error_max"] == max(landing["error"] for landing in landings)
+
+    table = TABLES["walking"](res)
+    assert table.frame is not None and len(table.frame) == 1
+    row = table.frame.iloc[0]
+    assert (row["robot"], row["controller"], row["steps"], row["status"]) == (
+        "tocabi_like",
+        "qp_wbc",
+        "2/2",
+        "ok",
+    )
+    # the plan the run followed is kept with its log, and the figure draws it with the run
+    assert json_plan_equal(res.log("walk-run").attrs["walk"], record.walk)
+    (tmp_path / "figures").mkdir()
+    written = walk_figures(res, tmp_path / "figures")
+    assert [p.name for p in written] == ["walk_tocabi_walk.png", "walk_tocabi_walk.svg"]
+
+
+def json_plan_equal(text: str, walk: dict | None) -> bool:
+    import json
+
+    return json.loads(text) == json.loads(json.dumps(walk))

@@ -123,12 +123,16 @@ class ResultsStore:
         run: dict[str, Any],
         metrics: list[dict[str, Any]],
         log: dict[str, Any] | None = None,
+        attrs: dict[str, str] | None = None,
     ) -> None:
-        """Append one run: its per-tick log, its metrics, then its row (the commit mark)."""
+        """Append one run: its per-tick log (with ``attrs``, e.g. the walk it followed, in the
+        Parquet file's metadata), its metrics, then its row (the commit mark)."""
         if log:
             path = self.folder / "logs" / f"{run['run_id']}.parquet"
             tmp = path.with_suffix(".parquet.tmp")
-            pd.DataFrame(log).to_parquet(tmp)
+            frame = pd.DataFrame(log)
+            frame.attrs.update(attrs or {})
+            frame.to_parquet(tmp)
             os.replace(tmp, path)
         self._append(self.metrics_csv, METRIC_COLUMNS, metrics)
         self._append(self.runs_csv, RUN_COLUMNS, [run])

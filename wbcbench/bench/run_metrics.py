@@ -29,6 +29,7 @@ from wbcbench.metrics.timing import timing_stats
 from wbcbench.sim.closed_loop import RunResult
 from wbcbench.tasks.contacts import PlaneContact
 from wbcbench.tasks.tasks import ERROR_UNITS
+from wbcbench.tasks.walking import WalkPlan
 
 WRENCH = ("fx", "fy", "fz", "mx", "my", "mz")
 
@@ -127,7 +128,7 @@ def run_metrics(
         )
     rows.append(MetricRow("*", "solve_failures", float(result.failures), "ticks"))
     if result.walk is not None:
-        rows += walk_metrics(result.walk, cols, warmup)
+        rows += walk_metrics(result.walk, cols, warmup, contacts)
     # task-reference amendments ‖ẍ_opt − ẍ*‖ of the optimising OSF controllers (to_osf), and
     # the velocity residual ‖J q̇ − r‖ of each level of the velocity-level controllers
     for key in cols:
@@ -179,20 +180,68 @@ def walk_phases(cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 
 def walk_metrics(
-    walk: dict[str, Any], cols: dict[str, np.ndarray], warmup: int = 0
+    walk: dict[str, Any],
+    cols: dict[str, np.ndarray],
+    warmup: int = 0,
+    contacts: list[PlaneContact] | None = None,
 ) -> list[MetricRow]:
-    """Steps the run completed (touchdowns confirmed of those planned), the landing error
-    (distance of each landed foot's frame to its footstep) [m], and the tick's total time per
-    phase (:func:`walk_phases`): ``t_total_<stat>_<phase>`` [µs]."""
+    """The metrics of a walk (``walk`` is :func:`wbcbench.sim.closed_loop.walk_record`'s):
+
+    * ``steps_completed`` of ``steps_planned`` (touchdowns confirmed);
+    * ``landing_error_{mean,max}`` [m]: each landed foot's frame from its footstep, in 3-D, and
+      ``landing_error_xy_*`` / ``landing_error_z_*`` its parts in and normal to the floor;
+    * ``dcm_error_{mean,max}`` [m]: the measured DCM x + ẋ/ω (simulated CoM) from the plan's;
+    * ``cop_margin_{min,mean}`` [m]: the simulated CoP's distance inside its sole's edge, over
+      the ticks a contact is active and carries load (negative: outside, the foot tips);
+    * ``slip_max`` [m]: the largest horizontal move of an active, settled contact's frame from
+      where its stance began;
+    * the tick's total time per phase (:func:`walk_phases`): ``t_total_<stat>_<phase>`` [µs].
+    """
     planned = sum(1 for f in walk["footsteps"] if f["touch_down"] is not None)
-    errors = [landing["error"] for landing in walk.get("landings", [])]
+    landings = walk.get("landings", [])
     rows = [
-        MetricRow("*", "steps_completed", float(len(errors)), "steps"),
+        MetricRow("*", "steps_completed", float(len(landings)), "steps"),
         MetricRow("*", "steps_planned", float(planned), "steps"),
     ]
-    if errors:
-        rows.append(MetricRow("*", "landing_error_mean", float(np.mean(errors)), "m"))
-        rows.append(MetricRow("*", "landing_error_max", float(np.max(errors)), "m"))
+    for key, suffix in (("error", ""), ("error_xy", "_xy"), ("error_z", "_z")):
+        errors = [landing[key] for landing in landings if key in landing]
+        if errors:
+            rows.append(MetricRow("*", f"landing_error{suffix}_mean", float(np.mean(errors)), "m"))
+            rows.append(MetricRow("*", f"landing_error{suffix}_max", float(np.max(errors)), "m"))
+    if "com.vx" in cols:
+        plan = WalkPlan.from_dict(walk)
+        com = np.column_stack([cols["com.x"], cols["com.y"]])
+        dcm = com + np.column_stack([cols["com.vx"], cols["com.vy"]]) / plan.omega
+        planned_dcm = np.array([plan.dcm(float(t)) for t in cols["t"]])
+        error = np.linalg.norm(dcm - planned_dcm, axis=1)
+        rows.append(MetricRow("*", "dcm_error_mean", float(np.mean(error)), "m"))
+        rows.append(MetricRow("*", "dcm_error_max", float(np.max(error)), "m"))
+    margins: list[np.ndarray] = []
+    slip = 0.0
+    for contact in contacts or []:
+        f = contact.frame
+        if f"active.{f}" not in cols:
+            continue
+        settled = cols[f"active.{f}"] >= 1.0
+        fz = cols[f"wrench_sim.{f}.fz"]
+        loaded = settled & (fz >= loaded_normal_force(contact))
+        cop_x = -cols[f"wrench_sim.{f}.my"][loaded] / fz[loaded]
+        cop_y = cols[f"wrench_sim.{f}.mx"][loaded] / fz[loaded]
+        (x0, x1), (y0, y1) = contact.x_range, contact.y_range
+        margins.append(np.minimum.reduce([cop_x - x0, x1 - cop_x, cop_y - y0, y1 - cop_y]))
+        if f"foot.{f}.x" in cols:
+            xy = np.column_stack([cols[f"foot.{f}.x"], cols[f"foot.{f}.y"]])
+            # each stance is a run of settled ticks; its slip is measured from its first tick
+            edges = np.flatnonzero(np.diff(np.r_[0, settled.astype(np.int8), 0]))
+            for begin, end in zip(edges[::2], edges[1::2], strict=True):
+                moved = np.linalg.norm(xy[begin:end] - xy[begin], axis=1)
+                slip = max(slip, float(np.max(moved, initial=0.0)))
+    if contacts is not None and margins:
+        margin = np.concatenate(margins)
+        if margin.size:
+            rows.append(MetricRow("*", "cop_margin_min", float(np.min(margin)), "m"))
+            rows.append(MetricRow("*", "cop_margin_mean", float(np.mean(margin)), "m"))
+        rows.append(MetricRow("*", "slip_max", slip, "m"))
     if "time.total" in cols and any(k.startswith("active.") for k in cols):
         after = np.arange(len(cols["t"])) >= warmup
         for phase, where in walk_phases(cols).items():

@@ -135,6 +135,8 @@ class RunRecord:
     metrics: list[dict[str, Any]]
     result: RunResult | None
     log: dict[str, Any] | None = None
+    #: the walk the run followed (:func:`wbcbench.sim.closed_loop.walk_record`), or None
+    walk: dict[str, Any] | None = None
 
 
 def ended_record(
@@ -175,6 +177,7 @@ def compute_tracking(
     metrics: list[dict[str, Any]] = []
     result: RunResult | None = None
     log = None
+    walk = None
     try:
         checker = ReportedCheck(check_factor) if check_factor else None
         result = run_closed_loop(
@@ -197,19 +200,23 @@ def compute_tracking(
             failures=result.failures,
         )
         log = {k: v for k, v in result.log.arrays().items()}
+        if result.walk is not None:  # with each sole's CoP box [m], for the walk's figure
+            soles = {c.frame: [*c.x_range, *c.y_range] for c in contacts}
+            walk = dict(result.walk, soles=soles)
     except WbcBenchError as exc:
         row.update(status="error", fell=False, message=str(exc), ticks=0, failures=0)
     except Exception as exc:  # a bug or a library error in one run must not end the sweep
         last = traceback.format_exception_only(type(exc), exc)[-1].strip()
         row.update(status="error", fell=False, message=last, ticks=0, failures=0)
-    return RunRecord(row, metrics, result, log)
+    return RunRecord(row, metrics, result, log, walk)
 
 
 def store_record(store: ResultsStore, run: Run, record: RunRecord) -> None:
     """Append a finished run to the store (with the scenario in the provenance)."""
     loaded = run.scenario
     store.record_scenario(loaded.name, loaded.hash, str(loaded.path))
-    store.add_run(record.row, record.metrics, record.log)
+    attrs = {"walk": json.dumps(record.walk)} if record.walk is not None else None
+    store.add_run(record.row, record.metrics, record.log, attrs)
 
 
 def execute(

@@ -14,6 +14,8 @@ names its solver, leaves failed runs out of its axis scaling (and marks them), a
 * ``rqr_fig1``: hierarchy time against the problem size N;
 * ``peers_kinematic``: kin_hqp beside pink and mink: the top level's error and residual while a
   lower level conflicts (rqr_gaze), the collision distance on rqr_stress, and time per tick;
+* ``walk_<scenario>``: a walk seen from above: footprints, the planned ZMP, DCM and CoM, and
+  the simulated CoM and CoP of one run (:mod:`wbcbench.report.walking`);
 * ``degradation``: tracking error against mass error, sensing noise and delay
   (:mod:`wbcbench.report.robustness`);
 * ``paper_*``: each paper's key comparison beside the paper's numbers
@@ -41,6 +43,7 @@ __all__ = [
     "solver_figures",
     "timing_solver_figure",
     "tracking_figures",
+    "walk_figures",
     "write_plots",
 ]
 
@@ -621,6 +624,53 @@ def peers_figure(res: Results, out: Path) -> list[Path]:
     return _save(fig, out, "peers_kinematic")
 
 
+def _walk_run(runs: pd.DataFrame) -> pd.Series:
+    """The run a walk figure shows: the one that got furthest, an ok one before a fall."""
+    key = pd.DataFrame(
+        {
+            "ok": (runs["status"] == "ok").astype(int),
+            "sim": pd.to_numeric(runs["sim_duration_s"], errors="coerce").fillna(0.0),
+        },
+        index=runs.index,
+    )
+    return runs.loc[key.sort_values(["ok", "sim"], kind="stable").index[-1]]
+
+
+def walk_figures(res: Results, out: Path) -> list[Path]:
+    """``walk_<scenario>``: each walk scenario seen from above, with the simulated CoM and CoP
+    of its furthest run (the plan is the one the run followed, kept with its log)."""
+    import json
+
+    from wbcbench.report.walking import measured_paths, walk_figure
+    from wbcbench.tasks.walking import WalkPlan
+
+    paths: list[Path] = []
+    runs = res.of_kind("tracking")
+    if runs.empty:
+        return paths
+    runs = runs[runs["status"].isin(["ok", "fell", "failed"])]
+    if "settings" in runs:
+        runs = runs[~runs["settings"].fillna("").astype(str).str.contains('"perturbations"')]
+    for scenario, group in runs.groupby("scenario"):
+        run = _walk_run(group)
+        log = res.log(str(run["run_id"]))
+        if log.empty or "walk" not in log.attrs:
+            continue
+        walk = json.loads(log.attrs["walk"])
+        plan = WalkPlan.from_dict(walk)
+        soles = {f: (tuple(b[:2]), tuple(b[2:])) for f, b in walk.get("soles", {}).items()}
+        sole = soles.get(plan.feet[0], ((-0.1, 0.1), (-0.05, 0.05)))
+        done = len(walk.get("landings", []))
+        status = "" if run["status"] == "ok" else f", {run['status']}"
+        title = (
+            f"{scenario}: {run['controller']} × {run['solver']} ({run.get('impl', '')}), "
+            f"{done} of {len(plan.swings)} steps in {float(run['sim_duration_s']):.1f} s{status}"
+        )
+        fig = walk_figure(plan, sole, measured_paths(log, soles), title)
+        paths += _save(fig, out, f"walk_{scenario}")
+    return paths
+
+
 def write_plots(folder: str | Path) -> list[Path]:
     """Every figure the results allow, into ``<folder>/figures``."""
     res = load_results(folder)
@@ -635,6 +685,7 @@ def write_plots(folder: str | Path) -> list[Path]:
         solver_figures,
         hls_figure,
         peers_figure,
+        walk_figures,
     ):
         paths += fn(res, out)
     from wbcbench.report.paper_figures import write_paper_figures

@@ -5,13 +5,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from wbcbench.tasks.walking import WalkPlan
 
-__all__ = ["walk_figure"]
+__all__ = ["measured_paths", "walk_figure"]
 
 FOOT_COLOURS = ("tab:blue", "tab:red")
 
@@ -27,6 +28,55 @@ def _footprint(
     return corners @ np.array([[c, s], [-s, c]]) + np.array(position[:2])
 
 
+def measured_paths(
+    log: pd.DataFrame, soles: dict[str, tuple[tuple[float, float], tuple[float, float]]]
+) -> dict[str, np.ndarray]:
+    """The simulated CoM and CoP of a walk run's log, as world (x, y) paths [m].
+
+    The CoP is the normal-force-weighted mean of each loaded sole's (``soles``: frame → its CoP
+    box, whose contacts count as loaded from 1 N) centre of pressure, taken from the simulated
+    wrench in the sole's frame and placed by the sole's position and yaw (a sole lies flat
+    while it carries load); NaN where no sole carries load.
+    """
+    out: dict[str, np.ndarray] = {}
+    if {"com.x", "com.y"} <= set(log.columns):
+        out["CoM"] = log[["com.x", "com.y"]].to_numpy()
+    total = np.zeros(len(log))
+    weighted = np.zeros((len(log), 2))
+    for frame in soles:
+        needed = [f"wrench_sim.{frame}.{c}" for c in ("fz", "mx", "my")]
+        needed += [f"foot.{frame}.{c}" for c in ("x", "y", "yaw")]
+        if not set(needed) <= set(log.columns):
+            continue
+        fz = log[f"wrench_sim.{frame}.fz"].to_numpy()
+        loaded = fz >= 1.0
+        safe = np.where(loaded, fz, 1.0)
+        local = (
+            np.column_stack(
+                [
+                    -log[f"wrench_sim.{frame}.my"].to_numpy(),
+                    log[f"wrench_sim.{frame}.mx"].to_numpy(),
+                ]
+            )
+            / safe[:, None]
+        )
+        yaw = log[f"foot.{frame}.yaw"].to_numpy()
+        c, s = np.cos(yaw), np.sin(yaw)
+        world = np.column_stack(
+            [
+                log[f"foot.{frame}.x"].to_numpy() + c * local[:, 0] - s * local[:, 1],
+                log[f"foot.{frame}.y"].to_numpy() + s * local[:, 0] + c * local[:, 1],
+            ]
+        )
+        weight = np.where(loaded, fz, 0.0)
+        total += weight
+        weighted += weight[:, None] * world
+    if np.any(total > 0):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out["CoP"] = np.where(total[:, None] > 0, weighted / total[:, None], np.nan)
+    return out
+
+
 def walk_figure(
     plan: WalkPlan,
     sole: tuple[tuple[float, float], tuple[float, float]] = ((-0.1, 0.1), (-0.05, 0.05)),
@@ -39,7 +89,8 @@ def walk_figure(
         plan: the planned walk.
         sole: the sole's (x, y) extent in its contact frame [m], drawn at every footstep.
         measured: optional paths recorded in a run, by name (``"CoM"``, ``"CoP"``, …), each an
-            (n, 2) array of world (x, y) [m]; drawn dashed beside the plan.
+            (n, 2) array of world (x, y) [m]; drawn dashed beside the plan (``"CoP"``, which
+            jumps from tick to tick, as points).
         title: the figure's title.
     """
     points = np.array([f.position[:2] for f in plan.footsteps])
@@ -73,7 +124,10 @@ def walk_figure(
     for (name, path), colour in zip(
         (measured or {}).items(), ("tab:orange", "tab:olive", "tab:cyan"), strict=False
     ):
-        ax.plot(path[:, 0], path[:, 1], "--", color=colour, linewidth=1.2, label=f"{name} (run)")
+        if name == "CoP":  # jumps from tick to tick under soft contacts: points, not a line
+            ax.plot(path[:, 0], path[:, 1], ".", color=colour, ms=1.5, alpha=0.4, label="CoP (run)")
+        else:
+            ax.plot(path[:, 0], path[:, 1], "--", color=colour, lw=1.2, label=f"{name} (run)")
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

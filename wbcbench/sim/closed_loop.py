@@ -23,6 +23,7 @@ of its time, or lands farther than ``sim.landing_tolerance`` from its footstep, 
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -323,10 +324,13 @@ def run_closed_loop(
         held = np.ones(len(frames), dtype=bool)
         confirmed_before: dict[tuple[int, int], float] = {}
         positions: list[np.ndarray] = []
+        yaws: list[float] = []
         for tick in range(n_ticks):
             t = tick * spec.dt
             if schedule is not None:
-                positions = [sensor.frame_pose(data, i)[0] for i in range(len(frames))]
+                poses = [sensor.frame_pose(data, i) for i in range(len(frames))]
+                positions = [p for p, _ in poses]
+                yaws = [math.atan2(r[1, 0], r[0, 0]) for _, r in poses]
                 why = schedule.observe(t, sim_w[2::6], positions)
                 if why:
                     status, message = "failed", why
@@ -389,6 +393,7 @@ def run_closed_loop(
                     row[f"foot.{f}.x"], row[f"foot.{f}.y"], row[f"foot.{f}.z"] = (
                         float(x) for x in pos
                     )
+                    row[f"foot.{f}.yaw"] = yaws[i]
                 row["touchdowns"] = float(len(schedule.confirmed))
             row["base_z"] = float(data.qpos[2])
             # the robot's own CoM and task errors: with perturbations the controller's state
@@ -400,6 +405,8 @@ def run_closed_loop(
                     for part, value in norms.items():
                         row[f"true_err.{task.name}.{part}"] = value
             row["com.x"], row["com.y"], row["com.z"] = (float(x) for x in true_state.com)
+            if schedule is not None:  # the measured DCM's velocity part, for the walk metrics
+                row["com.vx"], row["com.vy"] = (float(x) for x in true_state.com_velocity[:2])
             for name, value in out.diagnostics.items():
                 row[f"diag.{name}"] = value
             log.add(row)
@@ -438,12 +445,20 @@ def run_closed_loop(
 
 def walk_record(schedule: ContactSchedule | None) -> dict[str, Any] | None:
     """The walk a run followed as plain data: the plan (:meth:`WalkPlan.to_dict`) and its
-    confirmed touchdowns ``landings`` (frame, time [s], distance to the footstep [m])."""
+    confirmed touchdowns ``landings``: frame, time [s], and the landed frame's distance to its
+    footstep [m] in 3-D (``error``), in the floor plane (``error_xy``) and along z (``error_z``)."""
     if schedule is None or schedule.plan is None:
         return None
     out = schedule.plan.to_dict()
     out["landings"] = [
-        {"foot": foot, "t": t, "error": error} for foot, t, error in schedule.landings
+        {
+            "foot": foot,
+            "t": t,
+            "error": float(np.linalg.norm(offset)),
+            "error_xy": float(np.hypot(offset[0], offset[1])),
+            "error_z": float(abs(offset[2])),
+        }
+        for foot, t, offset in schedule.landings
     ]
     return out
 

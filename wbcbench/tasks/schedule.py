@@ -98,7 +98,8 @@ class ContactSchedule:
         #: set by the first :meth:`observe`: touchdowns then wait for load
         self.observing = False
         #: (frame, time [s], distance to the target [m]) of each confirmed touchdown with one
-        self.landings: list[tuple[str, float, float]] = []
+        #: confirmed landings: (frame, time [s], the frame's offset from its footstep (3,) [m])
+        self.landings: list[tuple[str, float, np.ndarray]] = []
 
     @property
     def frames(self) -> list[str]:
@@ -149,8 +150,9 @@ class ContactSchedule:
                     self.confirmed[(i, k)] = t
                     target = c.targets[k]
                     if target is not None:
-                        miss = float(np.linalg.norm(np.asarray(positions[i]) - target))
-                        self.landings.append((c.frame, t, miss))
+                        offset = np.asarray(positions[i], dtype=float) - target
+                        miss = float(np.linalg.norm(offset))
+                        self.landings.append((c.frame, t, offset))
                         if miss > self.landing_tolerance:
                             where = ", ".join(f"{v:.3f}" for v in target)
                             return (

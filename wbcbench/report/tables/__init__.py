@@ -11,7 +11,7 @@ paper's own solver when it was timed, else the default solver; hot mode before w
 
 One module per paper (``to_osf``, ``osf_hqp``, ``rc_lqp``, ``rqr``) beside the published numbers
 in :mod:`wbcbench.report.papers`, and ``peers`` (kin_hqp beside pink and mink, no published
-numbers); what they share is in ``common``.
+numbers) and ``walking`` (the walks, per robot); what they share is in ``common``.
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ from wbcbench.report.tables.to_osf import (
     to_osf_s4,
     to_osf_table3,
 )
+from wbcbench.report.tables.walking import walking
 
 __all__ = [
     "RC_LQP_COLUMNS",
@@ -74,6 +75,7 @@ TABLES: dict[str, Callable[[Results], PaperTable]] = {
     "rc_lqp_dof": rc_lqp_dof,
     "rqr_fig1": rqr_fig1,
     "peers_kinematic": peers_kinematic,
+    "walking": walking,
 }
 
 
