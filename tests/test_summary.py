@@ -101,5 +101,11 @@ def test_a_busy_machine_is_one_line_with_the_worst_load() -> None:
     assert "\n" not in line
     assert line.startswith(
         "warning: 2 of 574 timing rows were timed on a busy machine (worst: load 6.27, other "
-        "work 2.64 per core, above 0.5)"
+        "work 2.64 per core (load), above 0.5)"
     )
+    # a row whose CPU was watched is judged on that, not on its trailing load average
+    report.busy.append(
+        {"busy": True, "load_1min": 2.0, "busy_basis": "cpu", "other_cpu_per_core": 0.97}
+    )
+    report.busy[0]["other_load_per_core"] = report.busy[1]["other_load_per_core"] = 0.6
+    assert "(worst: load 2, other work 0.97 per core (CPU), above 0.5)" in report.busy_line()

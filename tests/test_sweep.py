@@ -539,15 +539,49 @@ def test_a_timing_row_records_what_the_machine_was_doing(tmp_path: Path) -> None
     assert report.timed == 1 and report.busy == ([conditions] if conditions["busy"] else [])
     assert {
         "load_1min",
+        "load_1min_before",
         "load_per_core",
         "other_load_per_core",
+        "other_cpu_per_core",
         "busy",
         "cpu",
         "cpu_mhz",
         "blas_threads",
     } <= set(conditions)
     assert conditions["blas_threads"] == 1  # the sweep times with one BLAS thread
-    assert conditions["load_1min"] >= 0 and "load_1min_after" in conditions
+    assert conditions["load_1min"] >= 0
+    # busy is judged on the rest of the machine's CPU use over the timing itself, not on the
+    # load average, which trails by a minute
+    assert conditions["busy_basis"] == "cpu"
+    assert conditions["busy"] == (conditions["other_cpu_per_core"] > 0.5)
+
+
+def test_a_cpu_watch_sees_other_processes_work_not_its_own() -> None:
+    import os
+    import subprocess
+    import sys
+    import time
+
+    from wbcbench.bench.provenance import CpuWatch, machine_conditions
+
+    cores = os.cpu_count() or 1
+    watch = CpuWatch()
+    # every core kept busy by other processes for a second: the watch sees (nearly) all of it
+    spin = "import time\nt = time.perf_counter()\nwhile time.perf_counter() - t < 1.0: pass"
+    procs = [subprocess.Popen([sys.executable, "-c", spin]) for _ in range(cores)]
+    for proc in procs:
+        proc.wait()
+    conditions = machine_conditions(watch)
+    assert conditions["busy_basis"] == "cpu" and conditions["busy"]
+    assert 0.5 < conditions["other_cpu_per_core"] <= 1.0
+    # the watch's own process is left out: what it spins on one core is not other work, so the
+    # rest of the machine can have used at most the other cores (and jiffy rounding)
+    own = CpuWatch()
+    t, cpu = time.perf_counter(), time.process_time()
+    while time.perf_counter() - t < 0.5:
+        pass
+    share = (time.process_time() - cpu) / ((time.perf_counter() - t) * cores)
+    assert 0.0 <= own.other_per_core() <= 1.0 - share + 0.05
 
 
 def test_provenance_keeps_each_code_version_that_wrote_to_a_folder(

@@ -9,6 +9,7 @@ import os
 import platform
 import re
 import subprocess
+import time
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -57,8 +58,40 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
-#: load of other work per core above which a timing is flagged: the machine was busy
+#: other work per core above which a timing is flagged: the machine was busy
 BUSY_LOAD_PER_CORE = 0.5
+
+
+class CpuWatch:
+    """The CPU time the rest of the machine used while this process timed something.
+
+    Started before a timing and read after it: the machine's busy CPU time (all but idle and
+    I/O wait, steal included), less this process's own, per core and per second of wall time.
+    Unlike the load average, which trails by a minute, it sees only the interval itself, so a
+    timing made just after a parallel phase of the same sweep is not called busy for it.
+    """
+
+    def __init__(self) -> None:
+        import psutil
+
+        self._process = psutil.Process()
+        self._start = self._sample()
+
+    def _sample(self) -> tuple[float, float, float]:
+        import psutil
+
+        system = psutil.cpu_times()
+        busy = sum(system) - system.idle - getattr(system, "iowait", 0.0)
+        own = self._process.cpu_times()
+        return time.perf_counter(), busy, own.user + own.system
+
+    def other_per_core(self) -> float:
+        """The rest of the machine's CPU use since the start, in cores per core (0 … 1)."""
+        wall0, busy0, own0 = self._start
+        wall1, busy1, own1 = self._sample()
+        cores = os.cpu_count() or 1
+        elapsed = max(wall1 - wall0, 1e-9)
+        return min(1.0, max(0.0, ((busy1 - busy0) - (own1 - own0)) / (elapsed * cores)))
 
 
 def cpu_mhz() -> float | None:
@@ -74,25 +107,52 @@ def cpu_mhz() -> float | None:
     return round(sum(mhz) / len(mhz), 1) if mhz else None
 
 
-def machine_conditions() -> dict[str, Any]:
-    """What the machine was doing when a timing was taken: load average (1 min) in all and per
-    core, the CPU model and clock, the BLAS threads and whether the machine is ``busy``: the load
-    of other work (the load average less the one the timing process itself keeps busy) above
-    :data:`BUSY_LOAD_PER_CORE` per core."""
+def machine_conditions(watch: CpuWatch | None = None) -> dict[str, Any]:
+    """What the machine was doing when a timing was taken: the load average (1 min) in all and
+    per core, the CPU model and clock, the BLAS threads, and whether the machine was ``busy``.
+
+    With a started ``watch``, busy means the rest of the machine used more than
+    :data:`BUSY_LOAD_PER_CORE` of each core over the watched interval (``other_cpu_per_core``,
+    ``busy_basis: cpu``). Without one, it falls back to the load average less the one core the
+    timing process keeps busy (``other_load_per_core``, ``busy_basis: load``)."""
     from threadpoolctl import threadpool_info
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     cores = os.cpu_count() or 1
     blas = [i.get("num_threads", 0) for i in threadpool_info() if i.get("user_api") == "blas"]
-    return {
+    other_load = max(0.0, load - 1.0) / cores
+    out: dict[str, Any] = {
         "load_1min": round(load, 2),
         "load_per_core": round(load / cores, 2),
-        "other_load_per_core": round(max(0.0, load - 1.0) / cores, 2),
-        "busy": bool(max(0.0, load - 1.0) / cores > BUSY_LOAD_PER_CORE),
+        "other_load_per_core": round(other_load, 2),
+        "busy": bool(other_load > BUSY_LOAD_PER_CORE),
+        "busy_basis": "load",
         "cpu": cpu_model(),
         "cpu_mhz": cpu_mhz(),
         "blas_threads": max(blas, default=0),
     }
+    if watch is not None:
+        other_cpu = watch.other_per_core()
+        out.update(
+            other_cpu_per_core=round(other_cpu, 2),
+            busy=bool(other_cpu > BUSY_LOAD_PER_CORE),
+            busy_basis="cpu",
+        )
+    return out
+
+
+def other_work_per_core(conditions: dict[str, Any]) -> float:
+    """The other work a timing's ``conditions`` measured per core: its CPU, else its load."""
+    key = "other_cpu_per_core" if conditions.get("busy_basis") == "cpu" else "other_load_per_core"
+    return float(conditions.get(key, 0.0))
+
+
+def other_work(conditions: dict[str, Any]) -> str:
+    """The other work a timing's ``conditions`` record, in words: ``other work 0.75 per core
+    (CPU, measured over the timing)`` or ``… (load average)``."""
+    if conditions.get("busy_basis") == "cpu":
+        return f"other work {conditions.get('other_cpu_per_core', float('nan')):g} per core (CPU)"
+    return f"other work {conditions.get('other_load_per_core', float('nan')):g} per core (load)"
 
 
 def git_commit() -> str:

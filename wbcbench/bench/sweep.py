@@ -47,7 +47,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from wbcbench.bench.checks import CHECK_FACTOR
-from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE
+from wbcbench.bench.provenance import BUSY_LOAD_PER_CORE, other_work, other_work_per_core
 from wbcbench.errors import ScenarioError, UnknownNameError, WbcBenchError
 from wbcbench.qp.registry import default_solver
 from wbcbench.runs import Planner, Run, RunSettings, solver_runs
@@ -873,11 +873,10 @@ class SweepReport:
         """One line for every timing row timed on a busy machine, with the worst load (or "")."""
         if not self.busy:
             return ""
-        worst = max(self.busy, key=lambda c: float(c.get("load_1min", 0.0)))
+        worst = max(self.busy, key=other_work_per_core)
         return (
             f"warning: {len(self.busy)} of {self.timed} timing rows were timed on a busy machine "
-            f"(worst: load {worst.get('load_1min', float('nan')):g}, other work "
-            f"{worst.get('other_load_per_core', float('nan')):g} per core, above "
+            f"(worst: load {worst.get('load_1min', float('nan')):g}, {other_work(worst)}, above "
             f"{BUSY_LOAD_PER_CORE:g}): compare their times only within this run; the paper "
             "verdicts resting on them say inconclusive"
         )

@@ -29,7 +29,7 @@ import numpy as np
 
 from wbcbench.bench.checks import SolverCapture, check_reported
 from wbcbench.bench.guard import report_progress
-from wbcbench.bench.provenance import machine_conditions
+from wbcbench.bench.provenance import CpuWatch, machine_conditions
 from wbcbench.bench.runner import RunRecord, base_row, ended_record
 from wbcbench.bench.sweep import HlsScalingSpec, Job
 from wbcbench.errors import WbcBenchError
@@ -168,6 +168,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
         return message
 
     wall0 = time.perf_counter()
+    watch = CpuWatch()  # the rest of the machine's CPU use from here to the replay's end
     try:
         rec, recorder = recording_for(folder, loaded, opts)
         if recorder != opts["recorder"]:  # the row says whose states it replayed
@@ -180,15 +181,16 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
                 f"t = {opts['start']:g} s (it ended early: the recorder fell or failed); "
                 "set `record_with` or `start` in the timing matrix"
             )
-        before = machine_conditions()
+        load_before = machine_conditions()["load_1min"]
         timings = replay(
             job.run,
             rec,
             on_step=after_step,
             wrap_solver=lambda handle: SolverCapture(handle, pairs),
         )
-        # the row says what the machine was doing (the load before and after the replay)
-        conditions = {**before, "load_1min_after": machine_conditions()["load_1min"]}
+        # the row says what the machine was doing: the rest of the machine's CPU use over the
+        # job, and the load average before and after the replay
+        conditions = {**machine_conditions(watch), "load_1min_before": load_before}
         row["settings"] = json.dumps(
             {**json.loads(row["settings"]), "conditions": conditions}, sort_keys=True
         )

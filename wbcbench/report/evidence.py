@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from wbcbench.bench.provenance import other_work, other_work_per_core
 from wbcbench.report.load import Results
 
 #: bootstrap resamples and seed (fixed: the same ticks give the same interval)
@@ -145,12 +146,11 @@ def busy(rows: pd.DataFrame | list[pd.Series]) -> str:
         conditions = _settings(row).get("conditions") or {}
         if conditions.get("busy"):
             count += 1
-            if worst is None or conditions.get("load_1min", 0) > worst.get("load_1min", 0):
+            if worst is None or other_work_per_core(conditions) > other_work_per_core(worst):
                 worst = conditions
     if worst is None:
         return ""
     return (
         f"{count} of {len(frame)} runs behind it were timed on a busy machine (load "
-        f"{worst.get('load_1min', float('nan')):g}, other work "
-        f"{worst.get('other_load_per_core', float('nan')):g} per core)"
+        f"{worst.get('load_1min', float('nan')):g}, {other_work(worst)})"
     )
