@@ -161,7 +161,9 @@ class SolveTable:
     def read(self) -> pd.DataFrame:
         """The stored rows (a torn last line, of a write under way, left out)."""
         data = self._whole_lines()
-        return pd.read_csv(io.BytesIO(data)) if data else pd.DataFrame()
+        # read whole (low_memory=False): columns such as reported_solved hold booleans and
+        # blanks, which chunked reading would type differently chunk by chunk
+        return pd.read_csv(io.BytesIO(data), low_memory=False) if data else pd.DataFrame()
 
 
 def reference_solution(problem: Problem, solver: str) -> tuple[np.ndarray | None, bool]:
