@@ -242,6 +242,45 @@ def test_an_interrupted_sweep_resumes_without_losing_or_repeating_rows(tmp_path:
     assert run_sweep(plan(path), interrupted, show_progress=False).computed == 0
 
 
+def test_a_sweep_reuses_another_folders_rows_of_the_same_runs(tmp_path: Path) -> None:
+    """The reference sweep copies make bench's rows of its runs instead of computing them: the
+    same rows, metrics and logs (thinned to its own log_every), and nothing else."""
+    bench, reference = tmp_path / "bench", tmp_path / "reference"
+    run_sweep(plan(tiny(tmp_path, "daqp", "daqp")), bench, show_progress=False)
+    # the reference: a subset (daqp only of the tracking, no proxqp), a sparser log
+    text = TINY.format(tracking_solvers="daqp, proxqp", timing_solvers="daqp")
+    text = text.replace("timing_warmup=5\"]", "timing_warmup=5\"]\n    log_every: 3")
+    report = run_sweep(
+        plan(write(tmp_path, text, "reference.yaml")), reference, show_progress=False, reuse=bench
+    )
+    assert report.reused == 2  # daqp's closed loop and its timing row
+    assert report.computed == 1  # proxqp's closed loop, which make bench did not run
+    ours, theirs = pd.read_csv(reference / "runs.csv"), pd.read_csv(bench / "runs.csv")
+    copied = ours[ours["run_id"].isin(set(theirs["run_id"]))]
+    assert len(copied) == 2
+    pd.testing.assert_frame_equal(
+        copied.reset_index(drop=True),
+        theirs.set_index("run_id").loc[copied["run_id"]].reset_index()[copied.columns],
+    )
+    m_ours, m_theirs = pd.read_csv(reference / "metrics.csv"), pd.read_csv(bench / "metrics.csv")
+    for rid in copied["run_id"]:
+        pd.testing.assert_frame_equal(
+            m_ours[m_ours["run_id"] == rid].reset_index(drop=True),
+            m_theirs[m_theirs["run_id"] == rid].reset_index(drop=True),
+        )
+    tracking = copied[copied["kind"] == "tracking"]["run_id"].iloc[0]
+    full = pd.read_parquet(bench / "logs" / f"{tracking}.parquet")
+    thinned = pd.read_parquet(reference / "logs" / f"{tracking}.parquet")
+    pd.testing.assert_frame_equal(thinned, full.iloc[::3].reset_index(drop=True))
+    provenance = json.loads((reference / "provenance.json").read_text())
+    assert provenance["reused"]["from"] == str(bench) and provenance["reused"]["runs"] == 2
+    # a second reuse has nothing left to copy
+    again = run_sweep(
+        plan(write(tmp_path, text, "reference.yaml")), reference, show_progress=False, reuse=bench
+    )
+    assert (again.reused, again.computed, again.resumed) == (0, 0, 3)
+
+
 @pytest.mark.usefixtures("runs_in_process")
 def test_a_solver_that_raises_or_lies_becomes_a_failure_row(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch

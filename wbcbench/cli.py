@@ -283,8 +283,10 @@ def _run_plan(plan, args: argparse.Namespace, out: Path, bench: bool = False) ->
         scheduler=args.scheduler,
         show_progress=not args.no_progress,
         rerun="all" if args.force else "failed" if args.retry_failed else "none",
+        reuse=args.reuse,
     )
-    print(f"{report.computed} rows computed, {report.resumed} already in {out} (resumed)")
+    reused = f", {report.reused} of them copied from {args.reuse}" if args.reuse else ""
+    print(f"{report.computed} rows computed, {report.resumed} already in {out} (resumed{reused})")
     if report.busy_line():
         print(report.busy_line(), file=sys.stderr)
     _print_suspects(out)
@@ -581,6 +583,12 @@ def build_parser() -> argparse.ArgumentParser:
         )
         rerun.add_argument(
             "--force", action="store_true", help="recompute every planned row, stored or not"
+        )
+        p.add_argument(
+            "--reuse",
+            metavar="RESULTS_DIR",
+            help="copy the closed-loop and timing rows another results folder holds for the "
+            "same runs of the same code (e.g. make bench's results) instead of computing them",
         )
 
     p = sub.add_parser("bench", help="the default sweep, then tables, solver report and figures")

@@ -201,6 +201,61 @@ class ResultsStore:
         runs = self.runs()
         return dict(zip(runs["run_id"], runs["status"], strict=True)) if not runs.empty else {}
 
+    def reuse(self, source: str | Path, wanted: dict[str, tuple[int, float]]) -> list[str]:
+        """Copy into this folder the runs of ``source``, another results folder, that
+        ``wanted`` names (run id → (keep every N-th tick of its log, the run's control period
+        [s])) and this folder lacks; a row that ended in ``error`` is left to be recomputed.
+
+        Run ids cover the scenario, the settings and the code version, so a copied run is the
+        run this folder's sweep would compute. Each is appended as a finished run is: its log
+        (thinned to every N-th tick where the source kept more), its metrics, then its row.
+        Returns the ids copied.
+        """
+        source = Path(source)
+        if not (source / "runs.csv").exists() or source.resolve() == self.folder.resolve():
+            return []
+        have = self.done_run_ids()
+        runs = pd.read_csv(source / "runs.csv")
+        runs = runs[runs["run_id"].isin(set(wanted) - have) & (runs["status"] != "error")]
+        if runs.empty:
+            return []
+        metrics = pd.read_csv(source / "metrics.csv")
+        metrics = metrics[metrics["run_id"].isin(set(runs["run_id"]))]
+        by_run = dict(iter(metrics.groupby("run_id", sort=False)))
+        copied = []
+        for row in runs.to_dict("records"):
+            rid = str(row["run_id"])
+            log, attrs = None, None
+            path = source / "logs" / f"{rid}.parquet"
+            if path.exists():
+                frame = pd.read_parquet(path)
+                attrs = dict(frame.attrs)
+                keep, dt = wanted[rid]
+                if "t" in frame and len(frame) > 1:
+                    kept = max(1, round(float(frame["t"].iloc[1] - frame["t"].iloc[0]) / dt))
+                    if keep > kept and keep % kept == 0:
+                        frame = frame.iloc[:: keep // kept]
+                log = {c: frame[c].to_numpy() for c in frame.columns}
+            group = by_run.get(rid)
+            rows = [] if group is None else group.to_dict("records")
+            self.add_run(row, rows, log, attrs)
+            copied.append(rid)
+        # the provenance says where the copied rows were measured
+        try:
+            theirs = json.loads((source / "provenance.json").read_text())
+        except (OSError, ValueError):
+            theirs = {}
+        self.provenance["reused"] = {
+            "from": str(source),
+            "runs": len(copied),
+            **{k: theirs.get(k) for k in ("date", "git_commit", "cpu", "cores", "source_hash")},
+        }
+        _write_atomically(
+            self.folder / "provenance.json",
+            json.dumps(self.provenance, indent=2, sort_keys=True) + "\n",
+        )
+        return copied
+
     def forget(self, run_ids: set[str]) -> int:
         """Remove runs (row, metrics, log) so that a sweep computes them again.
 

@@ -863,6 +863,8 @@ class SweepReport:
 
     computed: int = 0
     resumed: int = 0
+    #: rows copied from another results folder of the same code (``reuse``)
+    reused: int = 0
     failed: list[str] = field(default_factory=list)
     not_ok: dict[str, int] = field(default_factory=dict)
     #: timing rows computed now: how many, and the machine conditions of those timed busy
@@ -891,6 +893,7 @@ def run_sweep(
     max_jobs: int | None = None,
     on_row: Callable[[Job, dict[str, Any]], None] | None = None,
     rerun: Literal["none", "failed", "all"] = "none",
+    reuse: str | Path | None = None,
 ) -> SweepReport:
     """Run every job of the plan, appending each row to the store in ``out`` as it finishes.
 
@@ -901,13 +904,19 @@ def run_sweep(
     planned row (their old rows, metrics and logs are removed first). ``max_jobs`` stops
     after that many computed rows (to test interruption).
 
+    ``reuse`` names another results folder (e.g. ``make bench``'s) whose closed-loop and timing
+    rows with the same run id (the same scenario, settings and code) are copied instead of
+    computed again (:meth:`~wbcbench.bench.results.ResultsStore.reuse`).
+
     The sweep holds ``out`` for its whole run (:class:`~wbcbench.bench.lock.SweepLock`): it
     starts only once no earlier sweep on the folder, nor any process one started, is alive.
     """
     from wbcbench.bench.lock import SweepLock
 
     with SweepLock(out):
-        return _run_sweep(plan, out, executor, scheduler, show_progress, max_jobs, on_row, rerun)
+        return _run_sweep(
+            plan, out, executor, scheduler, show_progress, max_jobs, on_row, rerun, reuse
+        )
 
 
 def _run_sweep(
@@ -919,6 +928,7 @@ def _run_sweep(
     max_jobs: int | None,
     on_row: Callable[[Job, dict[str, Any]], None] | None,
     rerun: Literal["none", "failed", "all"],
+    reuse: str | Path | None = None,
 ) -> SweepReport:
     from threadpoolctl import threadpool_limits
     from tqdm import tqdm
@@ -940,8 +950,22 @@ def _run_sweep(
                 if rid in statuses and (rerun == "all" or statuses[rid] in NOT_OK)
             }
         )
-    done = store.done_run_ids()
     report = SweepReport()
+    if reuse is not None:
+        copyable = {
+            run_id(job.run, version, extra=job.extra): job
+            for job in plan.jobs
+            if job.kind in ("tracking", "timing") and not job.skip_reason
+        }
+        wanted = {
+            rid: (int(job.options.get("log_every", 1)), float(job.run.scenario.spec.dt))
+            for rid, job in copyable.items()
+        }
+        for rid in store.reuse(reuse, wanted):
+            loaded = copyable[rid].run.scenario
+            store.record_scenario(loaded.name, loaded.hash, str(loaded.path))
+            report.reused += 1
+    done = store.done_run_ids()
     pending: list[tuple[Job, str]] = []
     planned: set[str] = set()
     for job in plan.jobs:
