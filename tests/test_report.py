@@ -540,3 +540,44 @@ def test_fig1_verdict_counts_a_baseline_within_five_percent_as_a_tie() -> None:
     assert ours == "full 2.8×, SVD 3× at N = 100 (native)"
     frame["svd / reduced_qr (native)"] = [0.90, 2.51, 2.95]  # 10 % faster: a reversal
     assert _fig1(frame)[1] == "not"
+
+
+def test_a_solver_heatmap_row_compares_solvers_on_one_scenario_set() -> None:
+    from wbcbench.report.plots import solver_cells
+
+    rows = [
+        # three solvers timed on scenarios a and b (daqp also on c), one native backend on a only,
+        # and one whose every run failed
+        *(("a", solver, 100.0 * k) for k, solver in enumerate(("daqp", "osqp", "proxqp"), 1)),
+        *(("b", solver, 300.0 * k) for k, solver in enumerate(("daqp", "osqp", "proxqp"), 1)),
+        ("c", "daqp", 5000.0),
+        ("a", "eiquadprog", 50.0),
+    ]
+    t = pd.DataFrame(rows, columns=["scenario", "solver", "median_us"]).assign(
+        label="qp_wbc (native) · hot", status="ok"
+    )
+    t = pd.concat(
+        [
+            t,
+            pd.DataFrame(
+                [
+                    {
+                        "scenario": "a",
+                        "solver": "highs",
+                        "median_us": 9.0,
+                        "label": "qp_wbc (native) · hot",
+                        "status": "failed",
+                    }
+                ]
+            ),
+        ]
+    )
+    values, text, used = solver_cells(t)
+    row = "qp_wbc (native) · hot"
+    # daqp's median is over a and b, the row's set, not over its extra scenario c
+    assert used == {"a", "b"}
+    assert values.loc[row, "daqp"] == 200.0 and text.loc[row, "daqp"] == "200\nn=2"
+    assert values.loc[row, "osqp"] == 400.0 and text.loc[row, "osqp"] == "400\nn=2"
+    # a backend timed on fewer scenarios keeps its own median, marked
+    assert values.loc[row, "eiquadprog"] == 50.0 and text.loc[row, "eiquadprog"] == "50\nn=1*"
+    assert pd.isna(values.loc[row, "highs"]) and text.loc[row, "highs"] == "failed"

@@ -383,41 +383,59 @@ def _level_color(k: int) -> Any:
     return plt.get_cmap("tab20")(k % 20)
 
 
-def timing_solver_figure(res: Results, out: Path) -> list[Path]:
-    """Median step time per controller (impl) · mode and solver, as a heatmap.
-
-    Each row's cells are medians over the same scenarios: those every solver of the row timed
-    without failing (the count in each cell), so a solver timed on one easy scenario is never set
-    beside one timed on fourteen. A combination whose every run failed reads ``failed``."""
-    t = _timing_table(res)
-    if t.empty:
-        return []
-    t = t.assign(label=t["series"] + " · " + t["mode"], failed=_failed(t))
+def solver_cells(t: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame, set[str]]:
+    """The cells of the solver heatmap from timing rows (``label``, ``solver``, ``scenario``,
+    ``status``, ``median_us``): each row label × solver's median over the row's scenario set,
+    its text (value, ``n``, ``*`` when over the solver's own set) and the scenarios used (see
+    :func:`timing_solver_figure`)."""
+    t = t.assign(failed=_failed(t))
     rows, solvers = sorted(t["label"].unique()), sorted(t["solver"].unique())
     values = pd.DataFrame(np.nan, index=rows, columns=solvers)
     text = pd.DataFrame("", index=rows, columns=solvers)
     used: set[str] = set()
     for label, g in t.groupby("label"):
         ok = g[~g["failed"]]
-        scenario_sets = [set(s["scenario"]) for _, s in ok.groupby("solver")]
-        common = set.intersection(*scenario_sets) if scenario_sets else set()
+        sets = {str(solver): set(s["scenario"]) for solver, s in ok.groupby("solver")}
+        broad = [v for v in sets.values() if len(v) > 1] or list(sets.values())
+        common = set.intersection(*broad) if broad else set()
         used |= common
         for solver, s in g.groupby("solver"):
-            good = s[~s["failed"] & s["scenario"].isin(common)]
+            mine = sets.get(str(solver), set())
+            own = not (common and common <= mine)
+            good = s[~s["failed"] & s["scenario"].isin(mine if own else common)]
             if good.empty:
                 text.loc[label, solver] = "failed" if s["failed"].all() else ""
                 continue
             value = float(good.groupby("scenario")["median_us"].median().median())
             values.loc[label, solver] = value
-            text.loc[label, solver] = f"{value:.0f}\nn={good['scenario'].nunique()}"
+            n = good["scenario"].nunique()
+            text.loc[label, solver] = f"{value:.0f}\nn={n}{'*' if own else ''}"
+    return values, text, used
+
+
+def timing_solver_figure(res: Results, out: Path) -> list[Path]:
+    """Median step time per controller (impl) · mode and solver, as a heatmap.
+
+    A row's cells are medians over the same scenarios, the row's set: those that every solver
+    of the row timed on more than one scenario timed without failing (the count in each cell),
+    so a solver timed on one easy scenario is never set beside one timed on fourteen as if
+    alike. A solver timed on fewer scenarios than the row's set (such as the one-scenario run of
+    every native backend) shows its median over its own, marked ``*``. A combination whose every
+    run failed reads ``failed``."""
+    t = _timing_table(res)
+    if t.empty:
+        return []
+    values, text, used = solver_cells(t.assign(label=t["series"] + " · " + t["mode"]))
+    rows, solvers = list(values.index), list(values.columns)
     fig, ax = plt.subplots(figsize=(1.0 * len(solvers) + 4.5, 0.42 * len(rows) + 1.8))
     norm = _log_norm(values)
     _heatmap(ax, values, text, norm, "viridis", "median step time [µs] (log)")
     ax.set_xlabel("solver")
     ax.set_ylabel("controller (impl) · mode")
     ax.set_title(
-        "Open-loop replay: median step time [µs] per solver; n = the scenarios of the median,\n"
-        "the same for every solver of a row (those each timed without a failure)"
+        "Open-loop replay: median step time [µs] per solver; n = the scenarios of the median, the\n"
+        "same for every solver of a row that timed more than one (those each timed without a "
+        "failure);\n* = a solver timed on fewer, over its own"
         + (f":\n{', '.join(sorted(used))}" if 0 < len(used) <= 4 else ""),
         fontsize=9,
     )
