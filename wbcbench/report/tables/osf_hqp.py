@@ -178,7 +178,9 @@ def osf_hqp_backends(res: Results) -> PaperTable:
         runs = _one_impl(runs[[_config(r) == "" for _, r in runs.iterrows()]])
     rows = []
     if not runs.empty:
-        runs = runs.assign(tier=runs["tier"].fillna("default") if "tier" in runs else "default")
+        runs = runs.assign(
+            tier=runs["tier"].astype(object).fillna("default") if "tier" in runs else "default"
+        )
         for (solver, tier, mode), group in runs.groupby(["solver", "tier", "mode"]):
             conv = group[group["controller"] == "hqp"]
             prop = group[group["controller"] == "osf_hqp"]
