@@ -249,7 +249,7 @@ def test_a_sweep_reuses_another_folders_rows_of_the_same_runs(tmp_path: Path) ->
     run_sweep(plan(tiny(tmp_path, "daqp", "daqp")), bench, show_progress=False)
     # the reference: a subset (daqp only of the tracking, no proxqp), a sparser log
     text = TINY.format(tracking_solvers="daqp, proxqp", timing_solvers="daqp")
-    text = text.replace("timing_warmup=5\"]", "timing_warmup=5\"]\n    log_every: 3")
+    text = text.replace('timing_warmup=5"]', 'timing_warmup=5"]\n    log_every: 3')
     report = run_sweep(
         plan(write(tmp_path, text, "reference.yaml")), reference, show_progress=False, reuse=bench
     )
@@ -593,6 +593,9 @@ def test_a_timing_row_records_what_the_machine_was_doing(tmp_path: Path) -> None
     # load average, which trails by a minute
     assert conditions["busy_basis"] == "cpu"
     assert conditions["busy"] == (conditions["other_cpu_per_core"] > 0.5)
+    # and how fast a fixed workload ran just before and just after the replay [ms]
+    before, after = conditions["speed_probe_ms"]
+    assert before > 0 and after > 0
 
 
 def test_a_cpu_watch_sees_other_processes_work_not_its_own() -> None:

@@ -31,12 +31,22 @@ REFERENCE = ROOT / "results" / "reference"
 T3_PAPER = P.OSF_HQP_TABLE3["conventional"][-1] / P.OSF_HQP_TABLE3["proposed"][-1]
 
 
-def _conditions(busy: bool) -> dict:
+def _conditions(busy: bool, probes: tuple[float, float] = (10.0, 10.2)) -> dict:
     load = 6.3 if busy else 1.0
-    return {"busy": busy, "load_1min": load, "other_load_per_core": (load - 1) / 2}
+    return {
+        "busy": busy,
+        "load_1min": load,
+        "other_load_per_core": (load - 1) / 2,
+        "speed_probe_ms": list(probes),
+    }
 
 
-def _table3_folder(folder: Path, ratios: dict[str, float], busy: bool = False) -> Path:
+def _table3_folder(
+    folder: Path,
+    ratios: dict[str, float],
+    busy: bool = False,
+    probes: dict[str, tuple[float, float]] | None = None,
+) -> Path:
     """hqp and osf_hqp timed on Table III's scenario with each solver of ``ratios``: 60 ticks
     (10 of warm-up) of noisy tick times whose medians stand in the given ratio."""
     store = ResultsStore(folder)
@@ -45,7 +55,8 @@ def _table3_folder(folder: Path, ratios: dict[str, float], busy: bool = False) -
         noise = 1.0 + 0.05 * rng.standard_normal(60)
         for controller, scale in (("hqp", ratio), ("osf_hqp", 1.0)):
             rid = f"{controller}-{solver}"
-            settings = {"warmup": 10, "recorder": "qp_wbc", "conditions": _conditions(busy)}
+            conditions = _conditions(busy, (probes or {}).get(controller, (10.0, 10.2)))
+            settings = {"warmup": 10, "recorder": "qp_wbc", "conditions": conditions}
             solve = 1e-4 * scale * noise * rng.uniform(0.97, 1.03, 60)
             log = {"t": np.arange(60) * 1e-3, "time.solve": solve, "time.total": 2 * solve}
             row = dict(
@@ -96,6 +107,24 @@ def test_a_speed_timed_on_a_busy_machine_is_inconclusive_with_its_load(tmp_path:
     rows = _rows(_table3_folder(tmp_path, {"qpoases": T3_PAPER}, busy=True), "Table III")
     assert list(rows["verdict"]) == ["inconclusive"]
     assert "2 of 2 runs behind it were timed on a busy machine (load 6.3" in rows.iloc[0]["reason"]
+
+
+def test_a_speed_timed_while_the_machine_changed_speed_is_inconclusive(tmp_path: Path) -> None:
+    """A fixed workload that ran 40 % slower around one run than around the other: their
+    ratio mixes two machines, whatever its interval over the ticks says."""
+    probes = {"hqp": (10.0, 10.5), "osf_hqp": (14.0, 13.8)}
+    rows = _rows(_table3_folder(tmp_path, {"qpoases": T3_PAPER}, probes=probes), "Table III")
+    assert list(rows["verdict"]) == ["inconclusive"]
+    assert (
+        "the machine's speed moved while the 2 runs behind it were timed: a fixed workload took "
+        "10–14 ms around them (+40 %, above 15 %)" in rows.iloc[0]["reason"]
+    )
+    # within the tolerance the same ratio is judged on its interval
+    steady = {"hqp": (10.0, 10.5), "osf_hqp": (11.0, 10.8)}
+    rows = _rows(
+        _table3_folder(tmp_path / "steady", {"qpoases": T3_PAPER}, probes=steady), "Table III"
+    )
+    assert list(rows["verdict"]) == ["reproduced"]
 
 
 def test_the_judges_thresholds() -> None:

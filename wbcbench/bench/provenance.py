@@ -107,6 +107,27 @@ def cpu_mhz() -> float | None:
     return round(sum(mhz) / len(mhz), 1) if mhz else None
 
 
+#: the fixed workload of :func:`speed_probe`: LU solves of a seeded 120 × 120 system
+_PROBE_SIZE, _PROBE_SOLVES = 120, 20
+
+
+def speed_probe() -> float:
+    """The time [ms] of a fixed dense workload (:data:`_PROBE_SOLVES` LU solves of a seeded
+    :data:`_PROBE_SIZE`-square system, one BLAS thread where the caller limits it): how fast
+    the machine runs right now. A virtual machine's speed can move by half within seconds while
+    neither its load nor its CPU accounting shows it (the host's other guests); timings taken
+    on either side of such a move are not comparable, which these probes around each timing
+    reveal."""
+    import numpy as np
+
+    a = np.random.default_rng(0).standard_normal((_PROBE_SIZE, _PROBE_SIZE))
+    a += _PROBE_SIZE * np.eye(_PROBE_SIZE)
+    t0 = time.perf_counter()
+    for _ in range(_PROBE_SOLVES):
+        np.linalg.solve(a, a)
+    return round(1e3 * (time.perf_counter() - t0), 3)
+
+
 def machine_conditions(watch: CpuWatch | None = None) -> dict[str, Any]:
     """What the machine was doing when a timing was taken: the load average (1 min) in all and
     per core, the CPU model and clock, the BLAS threads, and whether the machine was ``busy``.

@@ -29,7 +29,7 @@ import numpy as np
 
 from wbcbench.bench.checks import SolverCapture, check_reported
 from wbcbench.bench.guard import report_progress
-from wbcbench.bench.provenance import CpuWatch, machine_conditions
+from wbcbench.bench.provenance import CpuWatch, machine_conditions, speed_probe
 from wbcbench.bench.runner import RunRecord, base_row, ended_record
 from wbcbench.bench.sweep import HlsScalingSpec, Job
 from wbcbench.errors import WbcBenchError
@@ -182,6 +182,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
                 "set `record_with` or `start` in the timing matrix"
             )
         load_before = machine_conditions()["load_1min"]
+        probe_before = speed_probe()
         timings = replay(
             job.run,
             rec,
@@ -189,8 +190,13 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
             wrap_solver=lambda handle: SolverCapture(handle, pairs),
         )
         # the row says what the machine was doing: the rest of the machine's CPU use over the
-        # job, and the load average before and after the replay
-        conditions = {**machine_conditions(watch), "load_1min_before": load_before}
+        # job, the load average before and after the replay, and how fast a fixed workload ran
+        # just before and just after it
+        conditions = {
+            **machine_conditions(watch),
+            "load_1min_before": load_before,
+            "speed_probe_ms": [probe_before, speed_probe()],
+        }
         row["settings"] = json.dumps(
             {**json.loads(row["settings"]), "conditions": conditions}, sort_keys=True
         )

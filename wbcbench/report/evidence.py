@@ -137,8 +137,9 @@ def ratio(
 
 
 def busy(rows: pd.DataFrame | list[pd.Series]) -> str:
-    """A sentence naming the busiest load among ``rows`` when any was timed on a busy machine
-    (its recorded ``conditions.busy``), else ""."""
+    """Why the timings of ``rows`` cannot be compared, in a sentence, else "": a run timed on a
+    busy machine (its recorded ``conditions.busy``; the busiest named), or the machine's speed
+    moving between the runs (:func:`speed_shift`)."""
     frame = pd.DataFrame(rows) if isinstance(rows, list) else rows
     worst: dict[str, Any] | None = None
     count = 0
@@ -149,8 +150,34 @@ def busy(rows: pd.DataFrame | list[pd.Series]) -> str:
             if worst is None or other_work_per_core(conditions) > other_work_per_core(worst):
                 worst = conditions
     if worst is None:
-        return ""
+        return speed_shift(frame)
     return (
         f"{count} of {len(frame)} runs behind it were timed on a busy machine (load "
         f"{worst.get('load_1min', float('nan')):g}, {other_work(worst)})"
+    )
+
+
+#: the largest spread of the speed probes around the runs behind a verdict (slowest / fastest
+#: − 1) at which their times still compare
+SPEED_SHIFT = 0.15
+
+
+def speed_shift(rows: pd.DataFrame | list[pd.Series]) -> str:
+    """A sentence when the speed probes taken just before and after each of ``rows``
+    (``conditions.speed_probe_ms``) spread by more than :data:`SPEED_SHIFT`: the machine ran
+    the same fixed workload that much slower at one time than at another, so the runs' times
+    are not comparable; else ""."""
+    frame = pd.DataFrame(rows) if isinstance(rows, list) else rows
+    probes = [
+        float(p)
+        for _, row in frame.iterrows()
+        for p in (_settings(row).get("conditions") or {}).get("speed_probe_ms") or []
+        if np.isfinite(float(p)) and float(p) > 0
+    ]
+    if len(probes) < 2 or max(probes) / min(probes) - 1.0 <= SPEED_SHIFT:
+        return ""
+    return (
+        f"the machine's speed moved while the {len(frame)} runs behind it were timed: a fixed "
+        f"workload took {min(probes):.3g}–{max(probes):.3g} ms around them "
+        f"(+{100 * (max(probes) / min(probes) - 1):.0f} %, above {100 * SPEED_SHIFT:.0f} %)"
     )
