@@ -223,13 +223,15 @@ class ResultsStore:
         metrics = metrics[metrics["run_id"].isin(set(runs["run_id"]))]
         by_run = dict(iter(metrics.groupby("run_id", sort=False)))
         copied = []
-        for row in runs.to_dict("records"):
+        for record in runs.to_dict("records"):
+            row = {str(k): v for k, v in record.items()}
             rid = str(row["run_id"])
-            log, attrs = None, None
+            log: dict[str, Any] | None = None
+            attrs: dict[str, str] | None = None
             path = source / "logs" / f"{rid}.parquet"
             if path.exists():
                 frame = pd.read_parquet(path)
-                attrs = dict(frame.attrs)
+                attrs = {str(k): str(v) for k, v in frame.attrs.items()}
                 keep, dt = wanted[rid]
                 if "t" in frame and len(frame) > 1:
                     kept = max(1, round(float(frame["t"].iloc[1] - frame["t"].iloc[0]) / dt))
@@ -238,7 +240,7 @@ class ResultsStore:
                 log = {c: frame[c].to_numpy() for c in frame.columns}
             group = by_run.get(rid)
             rows = [] if group is None else group.to_dict("records")
-            self.add_run(row, rows, log, attrs)
+            self.add_run(row, [{str(k): v for k, v in r.items()} for r in rows], log, attrs)
             copied.append(rid)
         # the provenance says where the copied rows were measured
         try:
