@@ -49,6 +49,8 @@ TIMES = [1.15, 1.199, 1.2, 1.201, 1.6, 1.999, 2.0, 2.001, 2.05, 2.199, 2.2, 2.20
 CASES: list[tuple[str, dict[str, Any], str | None]] = [
     ("qp_wbc", {"variables": "full"}, None),
     ("qp_wbc", {"variables": "eliminated"}, None),
+    ("hqp", {"strategy": "cascade"}, "nullspace"),
+    ("lqp", {"strategy": "nullspace"}, "cascade"),
 ]
 #: DAQP, and an active-set backend of another family
 SOLVERS = ["daqp", "quadprog"]

@@ -133,7 +133,7 @@ def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule() -> None:
     )
 
 
-@pytest.mark.parametrize("controller", ["qp_wbc"])
+@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp"])
 def test_native_tick_that_follows_a_schedule_is_planned(controller: str) -> None:
     run = plan_run(WALK, controller, "daqp", config={"impl": "native"})
     assert run.impl == "native"
