@@ -139,6 +139,15 @@ def test_native_tick_that_follows_a_schedule_is_planned(controller: str) -> None
     assert run.impl == "native"
 
 
+def test_a_sweep_runs_native_only_the_ticks_that_follow_a_schedule() -> None:
+    from wbcbench.bench.sweep import _impl_configs
+
+    impls = ["native", "python"]
+    assert _impl_configs(impls, "qp_wbc", scheduled=True) == [{"impl": i} for i in impls]
+    assert _impl_configs(impls, "to_osf", scheduled=True) == [{"impl": "python"}]
+    assert _impl_configs(impls, "to_osf", scheduled=False) == [{"impl": i} for i in impls]
+
+
 # -- the schedule at run time
 
 
