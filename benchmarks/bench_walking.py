@@ -1,10 +1,10 @@
 """The walking table: each torque-level controller walks ``tocabi_walk`` in closed loop.
 
-Run with ``python benchmarks/bench_walking.py [--steps N] [--controllers a,b] [--solver daqp]``.
-Prints controller × {steps completed / planned, status, mean and max CoM error, mean and max
-landing error, median and p99 total tick time per phase (double support, single support,
-transition ticks)}, the machine load before and after, as a Markdown table. Closed-loop wall
-times are the Python references' (native ticks hold a fixed contact set).
+Run with ``python benchmarks/bench_walking.py [--controllers a,b] [--solver daqp]
+[--impls python,native]``. Prints controller × impl × {steps completed / planned, status, mean
+and max CoM error, mean and max landing error, median and p99 total tick time per phase (double
+support, single support, transition ticks) [µs]}, the machine load before and after, as a
+Markdown table. A controller whose native tick holds a fixed contact set has no native row.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from wbcbench.bench.run_metrics import run_metrics
+from wbcbench.controllers.registry import controller_class
 from wbcbench.report.walking import walk_figure
 from wbcbench.runs import plan_run
 from wbcbench.scenarios.load import build_contacts
@@ -25,8 +26,10 @@ from wbcbench.tasks.walking import WalkPlan
 CONTROLLERS = ["qp_wbc", "hqp", "to_osf", "osf_hqp", "lqp", "rc_lqp"]
 
 
-def walk_row(controller: str, solver: str, overrides: list[str], figure: str = "") -> str:
-    run = plan_run("tocabi_walk", controller, solver, overrides=overrides)
+def walk_row(
+    controller: str, impl: str, solver: str, overrides: list[str], figure: str = ""
+) -> str:
+    run = plan_run("tocabi_walk", controller, solver, config={"impl": impl}, overrides=overrides)
     t0 = time.perf_counter()
     result = run_closed_loop(run)
     wall = time.perf_counter() - t0
@@ -50,11 +53,11 @@ def walk_row(controller: str, solver: str, overrides: list[str], figure: str = "
 
     steps = f"{get('*', 'steps_completed')}/{get('*', 'steps_planned')}"
     phases = " | ".join(
-        f"{get('*', f't_total_median_us_{p}', 1e-3)} / {get('*', f't_total_p99_us_{p}', 1e-3)}"
+        f"{get('*', f't_total_median_us_{p}')} / {get('*', f't_total_p99_us_{p}')}"
         for p in ("double", "single", "transition")
     )
     return (
-        f"| {controller} | {solver} | {steps} | {result.status} | "
+        f"| {controller} | {impl} | {solver} | {steps} | {result.status} | "
         f"{get('com', 'err_mean', 1e3)} / {get('com', 'err_max', 1e3)} | "
         f"{get('*', 'landing_error_mean', 1e3)} / {get('*', 'landing_error_max', 1e3)} | "
         f"{phases} | {wall:.0f} |"
@@ -65,19 +68,25 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--controllers", default=",".join(CONTROLLERS))
     parser.add_argument("--solver", default="daqp")
+    parser.add_argument("--impls", default="python,native", help="python, native or both")
     parser.add_argument("--set", action="append", default=[], help="scenario override")
     parser.add_argument("--figure", default="", help="save the first controller's walk here")
     args = parser.parse_args()
     print(f"load before: {os.getloadavg()}")
     print(
-        "| controller | solver | steps | status | CoM err mean / max [mm] | landing err mean / "
-        "max [mm] | double median / p99 [ms] | single median / p99 [ms] | transition median / "
-        "p99 [ms] | wall [s] |"
+        "| controller | impl | solver | steps | status | CoM err mean / max [mm] | landing err "
+        "mean / max [mm] | double median / p99 [µs] | single median / p99 [µs] | transition "
+        "median / p99 [µs] | wall [s] |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for i, controller in enumerate(args.controllers.split(",")):
-        figure = args.figure if i == 0 else ""
-        print(walk_row(controller, args.solver, args.set, figure), flush=True)
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    figure = args.figure
+    for controller in args.controllers.split(","):
+        cls = controller_class(controller)
+        for impl in args.impls.split(","):
+            if impl == "native" and not cls.native_schedule:
+                continue  # its native tick holds a fixed contact set
+            print(walk_row(controller, impl, args.solver, args.set, figure), flush=True)
+            figure = ""
     print(f"load after: {os.getloadavg()}")
 
 

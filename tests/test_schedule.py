@@ -122,15 +122,30 @@ def test_walk_steps_or_footsteps(tmp_path: Path) -> None:
     )
 
 
-def test_native_tick_refuses_a_schedule() -> None:
+def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule() -> None:
     with pytest.raises(WbcBenchError) as exc:
-        plan_run(WALK, "qp_wbc", "daqp", config={"impl": "native"})
+        plan_run(WALK, "to_osf", "daqp", config={"impl": "native"})
     assert str(exc.value) == (
-        f"{WALK}: qp_wbc: the native tick holds a fixed contact set and this scenario's contacts "
+        f"{WALK}: to_osf: the native tick holds a fixed contact set and this scenario's contacts "
         "change (a contact schedule or a walk); run the Python reference: impl python (--set "
-        "controllers.qp_wbc.impl=python, or controllers: {qp_wbc: {impl: python}} in the "
+        "controllers.to_osf.impl=python, or controllers: {to_osf: {impl: python}} in the "
         "scenario)"
     )
+
+
+@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp"])
+def test_native_tick_that_follows_a_schedule_is_planned(controller: str) -> None:
+    run = plan_run(WALK, controller, "daqp", config={"impl": "native"})
+    assert run.impl == "native"
+
+
+def test_a_sweep_runs_native_only_the_ticks_that_follow_a_schedule() -> None:
+    from wbcbench.bench.sweep import _impl_configs
+
+    impls = ["native", "python"]
+    assert _impl_configs(impls, "qp_wbc", scheduled=True) == [{"impl": i} for i in impls]
+    assert _impl_configs(impls, "to_osf", scheduled=True) == [{"impl": "python"}]
+    assert _impl_configs(impls, "to_osf", scheduled=False) == [{"impl": i} for i in impls]
 
 
 # -- the schedule at run time

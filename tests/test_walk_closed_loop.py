@@ -1,11 +1,14 @@
-"""A short walk in closed loop: the feet lift off and land on schedule and the run ends ok; a
+"""A short walk in closed loop: the feet lift off and land on schedule and the run ends ok (the
+weighted QP in both impls, the native ticks of the hierarchies that follow a contact set); a
 touchdown the simulated foot never confirms ends the run with a message naming it."""
 
 from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
+import pytest
 
+from wbcbench import _native
 from wbcbench.runs import plan_run
 from wbcbench.sim.closed_loop import run_closed_loop
 
@@ -24,8 +27,16 @@ SHORT = [
 ]
 
 
-def test_a_short_walk_lands_every_step() -> None:
-    run = plan_run("tocabi_walk", "qp_wbc", "daqp", overrides=SHORT)
+#: (controller, impl): the weighted QP in both impls, the hierarchies natively
+WALKERS = [("qp_wbc", "python"), ("qp_wbc", "native"), ("hqp", "native"), ("lqp", "native")]
+
+
+@pytest.mark.parametrize(("controller", "impl"), WALKERS)
+def test_a_short_walk_lands_every_step(controller: str, impl: str) -> None:
+    if impl == "native" and not _native.BUILT:
+        pytest.skip(f"native module {_native.REASON}")
+    run = plan_run("tocabi_walk", controller, "daqp", config={"impl": impl}, overrides=SHORT)
+    assert run.impl == impl
     result = run_closed_loop(run)
     assert result.status == "ok", result.message
     log = result.log.arrays()

@@ -278,7 +278,8 @@ class Planner:
             solver_class(solver)
         variant = dict(config or {})
         validated = validated_config(cls, loaded, variant, *where)
-        if loaded.spec.has_schedule and cls.impl_for(validated) == "native":
+        native = cls.impl_for(validated) == "native"
+        if loaded.spec.has_schedule and native and not cls.native_schedule:
             raise WbcBenchError(f"{loaded.path}: {native_schedule_refusal(controller)}")
         settings = RunSettings(controller, solver, tier, mode, variant)
         velocity = cls.kind == "velocity" or loaded.spec.kind == "kinematic"

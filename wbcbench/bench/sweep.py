@@ -505,13 +505,15 @@ def _impl_configs(
     impls: Sequence[str], controller: str, scheduled: bool = False
 ) -> list[dict[str, str]]:
     """The ``impl`` overrides of a controller for a matrix's ``impls`` (each once); on a
-    scenario whose contacts change (``scheduled``) without native, which holds a fixed set."""
+    scenario whose contacts change (``scheduled``) without native where the controller's native
+    tick holds a fixed set."""
     from wbcbench.controllers.registry import controller_class
 
-    has_native = controller_class(controller).has_native
+    cls = controller_class(controller)
+    has_native = cls.has_native
     out: list[dict[str, str]] = []
     for impl in impls:
-        if scheduled and impl == "native":
+        if scheduled and impl == "native" and not cls.native_schedule:
             continue
         config = {"impl": impl} if impl != "default" and has_native else {}
         if config not in out:
@@ -683,7 +685,8 @@ def plan_sweep(file: str, spec: SweepSpec) -> SweepPlan:
                             not_applicable.append(f"{loaded.name} · {controller}: {reason}")
                         continue
                     scheduled = loaded.spec.has_schedule
-                    if scheduled and "native" in matrix.impls:
+                    fixed_set = not controller_class(controller).native_schedule
+                    if scheduled and fixed_set and "native" in matrix.impls:
                         not_applicable.append(
                             f"{loaded.name} · {controller} impl native: the native tick holds a "
                             "fixed contact set"

@@ -230,6 +230,9 @@ class Controller(ABC):
     reference_solvers: ClassVar[tuple[str, ...]] = ("proxqp", "daqp")
     #: the controller has a native tick (``impl: native``; its Config is a NativeImplConfig)
     has_native: ClassVar[bool] = False
+    #: its native tick follows a changing contact set (a contact schedule or a walk); the
+    #: others are refused on such a scenario (:func:`native_schedule_refusal`)
+    native_schedule: ClassVar[bool] = False
     #: the name of the solver the controller brings itself ("" when its QPs go through the
     #: run's backend); such a controller runs once per scenario and settings, recorded under
     #: this name at tier ``default``, whatever backends and tiers a sweep asks for
@@ -259,7 +262,7 @@ class Controller(ABC):
         self.impl = self.impl_for(self.config)
         if self.impl == "native":
             _native.core()  # fails here, with why, where the module is not built
-            if ctx.schedule is not None:
+            if ctx.schedule is not None and not self.native_schedule:
                 raise ControllerError(native_schedule_refusal(self.name))
         # with a schedule, the first tick selects (and rebuilds what depends on the set)
         self.active_contacts = (-1,) if ctx.schedule else tuple(range(len(ctx.contacts)))

@@ -98,6 +98,7 @@ class Hqp(NativeController):
     Config = HqpConfig
     config: HqpConfig
     tick_type = "HqpTick"
+    native_schedule = True
 
     @classmethod
     def impl_for(cls, config: ControllerConfig) -> str:
@@ -145,8 +146,12 @@ class Hqp(NativeController):
         s.wrench_weights = weights
         s.prox = cfg.prox
         s.accept_tol = accept_tol(self.ctx)
-        s.level_weights = list(cfg.level_weights)
-        s.priorities, s.groups = priority_groups(self.ctx.tasks)
+        s.priorities, s.groups = priority_groups(self.ctx.tasks, self.active_tasks)
+        # the weighted strategy's weight of a level is its priority's among all priorities
+        per_level = cfg.level_weights
+        s.level_weights = [
+            per_level[min(self.priorities.index(p), len(per_level) - 1)] for p in s.priorities
+        ] or list(per_level)
         s.force_level = [task.level == "force" for task in self.ctx.tasks]
         set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
@@ -169,7 +174,8 @@ class Hqp(NativeController):
         self, state: RobotState, terms: list[TaskTerm], ok: bool
     ) -> dict[str, float]:
         result = self.native_tick.result
-        return self._diagnostics(result.levels[: len(self.priorities)], result.retries)
+        levels = len({task.priority for task in self.active_tasks})
+        return self._diagnostics(result.levels[:levels], result.retries)
 
     @staticmethod
     def _diagnostics(levels: list[Any], retries: int) -> dict[str, float]:

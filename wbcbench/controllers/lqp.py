@@ -127,8 +127,11 @@ def level_weight(weights: list[float], i: int) -> float:
     return weights[min(i, len(weights) - 1)]
 
 
-def lexicographic_settings(cfg: LexicographicConfig, tasks: list[Any]) -> Any:
-    """The native settings both LQPs share, from the Python config."""
+def lexicographic_settings(
+    cfg: LexicographicConfig, tasks: list[Any], active: list[Any] | None = None
+) -> Any:
+    """The native settings both LQPs share, from the Python config; ``active``: the tasks of
+    the tick (all by default, see :func:`~wbcbench.controllers.native.priority_groups`)."""
     core = _native.core()
     s = core.LexicographicSettings()
     s.strategy = getattr(core.Strategy, cfg.strategy)
@@ -137,7 +140,7 @@ def lexicographic_settings(cfg: LexicographicConfig, tasks: list[Any]) -> Any:
     s.prox = cfg.prox
     s.final_weight = cfg.final_weight
     s.weights = list(cfg.weights)
-    s.priorities, s.groups = priority_groups(tasks)
+    s.priorities, s.groups = priority_groups(tasks, active)
     return s
 
 
@@ -206,6 +209,7 @@ class Lqp(NativeController):
     reference_solvers = ("quadprog",)
     config: LqpConfig
     tick_type = "LqpTick"
+    native_schedule = True
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -217,15 +221,18 @@ class Lqp(NativeController):
         self.last_output: ControlOutput | None = None
 
     def configure_tick(self, tick: Any) -> None:
-        s = lexicographic_settings(self.config, self.ctx.tasks)
+        s = lexicographic_settings(self.config, self.ctx.tasks, self.active_tasks)
         s.accept_tol = accept_tol(self.ctx)
         set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         tick.configure(s)
 
     def level_solve(self, tick: Any) -> LevelSolve:
+        # handles for the most levels any contact set gives (contacts, every priority, energy):
+        # a set whose tasks leave a priority empty uses the first ones, as the reference does
+        levels = len({task.priority for task in self.ctx.tasks}) + 2
         return LevelSolve(
             lambda pool, i: tick.slot(i),
-            [self.pool.get(tick.handles)],
+            [self.pool.get(max(tick.handles, 2 * levels))],
             self.ctx.keep_problems,
             self.config.solver_calls,
         )

@@ -57,9 +57,15 @@ from wbcbench.tasks.trajectories import (
     Trajectory,
 )
 
+#: the reference trajectories the native side computes itself (handed over once); any other
+#: (a walk's CoM plan, heading or swing path) is sampled in Python every tick
+NATIVE_TRAJECTORIES = (Constant, Sinusoid, PiecewiseCubic, MinimumJerk, PiecewiseLinear)
 
-def native_trajectory(traj: Trajectory) -> Any:
-    """The native form of a reference trajectory (the same numbers, handed over once)."""
+
+def native_trajectory(traj: Trajectory, dim: int) -> Any:
+    """The native form of a reference trajectory of ``dim`` rows: the same numbers, handed
+    over once; a trajectory with no native form becomes a sampled one, whose value
+    :meth:`NativeController.native_step` sets before every tick (``TaskSet.set_sample``)."""
     c = _native.core().Trajectory
     if isinstance(traj, Constant):
         return c.constant(np.asarray(traj.value, dtype=float))
@@ -75,7 +81,7 @@ def native_trajectory(traj: Trajectory) -> Any:
         return c.minimum_jerk(traj._times, np.asarray(traj._values, dtype=float))
     if isinstance(traj, PiecewiseLinear):
         return c.linear(traj._times, np.asarray(traj._values, dtype=float))
-    raise ControllerError(f"a {type(traj).__name__} reference has no native form; use impl: python")
+    return c.sampled(dim)
 
 
 #: the native task type of each task class (subclasses first)
@@ -121,7 +127,7 @@ def task_spec(task: Task, frames: list[str]) -> Any:
     if rotation is not None:
         spec.R0 = np.asarray(rotation, dtype=float)
     assert task.reference is not None
-    spec.reference = native_trajectory(task.reference)
+    spec.reference = native_trajectory(task.reference, m)
     return spec
 
 
@@ -210,6 +216,11 @@ class QpCall:
         # a handle whose answers are checked after the step (bench.checks.SolverCapture)
         self.sink: list[tuple[Problem, Solution]] | None = getattr(handle, "sink", None)
         self._last: Solution | None = None
+
+    def rebind(self) -> None:
+        """Re-make the Problem view after the tick re-sized the buffers (a new contact set):
+        the old view's arrays point at memory the buffers no longer use."""
+        self.problem = qp_view(self.buffers, self.problem.name)
 
     def solve(self, timer: SolveTimes, level: str | None = None) -> tuple[Any, Solution]:
         """Solve the QP the tick has built; ``(x, solution)``, x None when it failed."""
@@ -395,11 +406,20 @@ def solution_of(handle: Any, outcome: tuple[Any, ...]) -> Solution:
     )
 
 
-def priority_groups(tasks: list[Task]) -> tuple[list[int], list[list[int]]]:
+def priority_groups(
+    tasks: list[Task], active: list[Task] | None = None
+) -> tuple[list[int], list[list[int]]]:
     """The distinct priorities, highest (1) first, and the indices of each one's tasks (in the
-    scenario's order): the levels of a hierarchical controller, handed to its native tick."""
-    priorities = sorted({task.priority for task in tasks})
-    groups = [[i for i, task in enumerate(tasks) if task.priority == p] for p in priorities]
+    scenario's order): the levels of a hierarchical controller, handed to its native tick.
+
+    ``active``: the tasks of the tick (:attr:`Controller.active_tasks`; all by default): only
+    theirs are grouped, and a priority none of whose tasks is active has no level."""
+    held = {id(task) for task in (tasks if active is None else active)}
+    priorities = sorted({task.priority for task in tasks if id(task) in held})
+    groups = [
+        [i for i, task in enumerate(tasks) if task.priority == p and id(task) in held]
+        for p in priorities
+    ]
     return priorities, groups
 
 
@@ -458,6 +478,11 @@ class NativeController(Controller):
     native_calls: Sequence[QpCall] = ()
     #: the callback of a tick that runs a whole hierarchy (:meth:`level_solve`)
     native_solve: LevelSolve | None = None
+    #: the contact set the tick holds (None: every contact, as it was made)
+    tick_contacts: tuple[int, ...] | None = None
+    #: the tick's tasks whose reference has no native form (index in the tick, task): sampled
+    #: here before every tick, those of :attr:`Controller.active_tasks` only
+    sampled_tasks: list[tuple[int, Task]]
 
     # -- what a controller declares --------------------------------------------------------------
 
@@ -514,16 +539,58 @@ class NativeController(Controller):
             )
         for task in tasks:
             tick.tasks.add(task_spec(task, frames))
+        self.tick_contacts = None
+        if self.ctx.schedule is not None and -1 not in self.active_contacts:
+            # made again after steps (a new start): the set the Python side holds, whose
+            # inequalities configure_tick hands over
+            tick.select_contacts(list(self.active_contacts))
+            self.tick_contacts = self.active_contacts
         self.configure_tick(tick)
         self.native_tick = tick
+        self.sampled_tasks = self.held_sampled(tasks)
         self.native_calls = self.qp_calls(tick)
         self.native_solve = self.level_solve(tick)
 
+    def held_sampled(self, tasks: list[Task]) -> list[tuple[int, Task]]:
+        """The tasks of the tick whose references are sampled here, among the active ones."""
+        active = {id(task) for task in self.active_tasks}
+        return [
+            (i, task)
+            for i, task in enumerate(tasks)
+            if id(task) in active and not isinstance(task.reference, NATIVE_TRAJECTORIES)
+        ]
+
+    def native_contacts(self, t: float) -> None:
+        """Hand the tick the contacts of ``t`` (with a schedule), the one place the Python side
+        does: :meth:`~Controller.select_contacts` picks them; when the set differs from the
+        tick's, the tick re-sizes its contact buffers and takes the controller's settings for
+        the new set (:meth:`configure_tick`, which sizes its QPs), and the Problem views of its
+        QPs are re-made. Every tick, the set's ramped normal-force bounds."""
+        self.select_contacts(t)
+        tick = self.native_tick
+        if self.active_contacts != self.tick_contacts:
+            tick.select_contacts(list(self.active_contacts))
+            self.configure_tick(tick)
+            for call in self.native_calls:
+                call.rebind()
+            self.tick_contacts = self.active_contacts
+            self.sampled_tasks = self.held_sampled(self.tick_tasks())
+        tick.set_wrench_bounds(self.lw, self.uw)
+
     def native_step(self, state: RobotState, t: float) -> ControlOutput:
-        """:meth:`step` on the native tick: the timed region, then the output read after it."""
+        """:meth:`step` on the native tick: the timed region, then the output read after it.
+        The region includes choosing the contacts and sampling the references that have no
+        native form."""
         if self.native_tick is None:
             self.make_native()
         timer = NativeTimer()
+        if self.ctx.schedule is not None:
+            self.native_contacts(t)
+        if self.sampled_tasks:
+            native_tasks = self.native_tick.tasks
+            for i, task in self.sampled_tasks:
+                assert task.reference is not None
+                native_tasks.set_sample(i, *task.reference.sample(t))
         message = self.native_region(state.q, state.v, t, timer)
         timer.stop()
         return self.native_output(state, timer, message)
@@ -550,11 +617,12 @@ class NativeController(Controller):
         return None
 
     def native_terms(self) -> list[TaskTerm]:
-        """The last tick's task terms (copies), in the order of the scenario's tasks."""
+        """The last tick's task terms (copies), in the order of the scenario's tasks: those the
+        tick holds (:attr:`Controller.active_tasks`)."""
         by_task = {
             id(term.task): term for term in task_terms(self.tick_tasks(), self.native_tick.tasks)
         }
-        return [by_task[id(task)] for task in self.ctx.tasks]
+        return [by_task[id(task)] for task in self.active_tasks]
 
     def native_diagnostics(
         self, state: RobotState, terms: list[TaskTerm], ok: bool

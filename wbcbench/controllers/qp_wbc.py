@@ -87,6 +87,7 @@ class QpWbc(NativeController):
     Config = QpWbcConfig
     config: QpWbcConfig
     tick_type = "QpWbcTick"
+    native_schedule = True
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
@@ -100,8 +101,14 @@ class QpWbc(NativeController):
         cfg = self.config
         s = _native.core().QpWbcSettings()
         s.eliminated = cfg.variables == "eliminated"
+        # the tick holds every task's rows; a task that has left the QP (a swing task while its
+        # foot stands) weighs nothing
+        active = {id(task) for task in self.active_tasks}
         s.row_weights = np.concatenate(
-            [np.full(task.dim, task_weight_of(task, cfg.weights)) for task in self.ctx.tasks]
+            [
+                np.full(task.dim, task_weight_of(task, cfg.weights) if id(task) in active else 0.0)
+                for task in self.ctx.tasks
+            ]
             or [np.zeros(0)]
         )
         s.acceleration_weight = cfg.acceleration_weight

@@ -30,6 +30,9 @@ WBCBENCH_BIND(tick, kCore, m) {
             return Trajectory::waypoints(Trajectory::Kind::kLinear, times, values);
           },
           nb::arg("times"), nb::arg("values"))
+      .def_static("sampled", &Trajectory::sampled, nb::arg("dim"),
+                  "A reference whose (x, ẋ, ẍ) the Python side sets before each tick "
+                  "(TaskSet.set_sample)")
       .def_prop_ro("dim", &Trajectory::dim)
       .def(
           "sample",
@@ -64,6 +67,8 @@ WBCBENCH_BIND(tick, kCore, m) {
       .def("add", &TaskSet::add, nb::arg("spec"))
       .def("evaluate", &TaskSet::evaluate, nb::arg("dynamics"), nb::arg("q").noconvert(),
            nb::arg("v").noconvert(), nb::arg("t"))
+      .def("set_sample", &TaskSet::set_sample, nb::arg("i"), nb::arg("x"), nb::arg("xd"),
+           nb::arg("xdd"), "task i's sampled reference (x, ẋ, ẍ) for the next ticks")
       .def_prop_ro("size", &TaskSet::size)
       .def_prop_ro("rows", &TaskSet::rows)
       .def("offset", &TaskSet::offset, nb::arg("i"))
@@ -94,6 +99,15 @@ WBCBENCH_BIND(tick, kCore, m) {
       .def("set_contact_points", &Tick::set_contact_points, nb::arg("points"), nb::arg("bases"),
            "Contacts made of points: one (N, 3) array per contact frame, (0, 3) for a flat one, "
            "and each one's (r, 3N) row basis, (0, 0) for a flat one; before configure()")
+      .def("select_contacts", &Tick::select_contacts, nb::arg("active"),
+           "The contacts the tick holds (increasing indices into the contact frames); a change "
+           "re-sizes the dynamics' contact buffers, and the controller's settings for the new "
+           "set are handed over next (configure). Returns whether the set changed.")
+      .def("set_wrench_bounds", &Tick::set_wrench_bounds, nb::arg("lw").noconvert(),
+           nb::arg("uw").noconvert(),
+           "This tick's bounds on the active contacts' wrench rows (the normal-force ramps)")
+      .def_prop_ro("active_contacts",
+                   [](Tick& t) { return t.dynamics().active_contacts(); })
       .def_prop_ro("tasks", &Tick::tasks, kView)
       .def_prop_ro("dynamics_time", [](const Tick& t) { return t.times().dynamics; })
       .def_prop_ro("build_time", [](const Tick& t) { return t.times().build; });

@@ -99,6 +99,15 @@ void HqpTick::configure(const HqpSettings& settings) {
   wrench_.setZero(nc_);
 }
 
+void HqpTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                                const Eigen::Ref<const Vector>& uw) {
+  check_wrench_bounds("hqp", s_.Cw, lw, uw);
+  s_.lw = lw;
+  s_.uw = uw;
+  hard_.l = lw;
+  hard_.u = uw;
+}
+
 bool HqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t,
                   LevelSolver& solver) {
   const auto t0 = Clock::now();

@@ -38,6 +38,9 @@ class HqpTick : public Tick {
   bool run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t,
            LevelSolver& solver);
   int handles() const;
+  // the wrench rows' bounds of this tick (a contact schedule's ramps), into the hard rows
+  void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                         const Eigen::Ref<const Vector>& uw) override;
 
   const HierarchyResult& result() const { return result_; }
   const Hierarchy& hierarchy() const { return hierarchy_; }

@@ -38,6 +38,8 @@ class FullLqp {
   // or the data hold a NaN (failed_level empty)
   bool solve(const RobotDynamics& dyn, const TaskSet& tasks, LevelSolver& solver);
   int handles() const { return 2 * static_cast<int>(levels_.size()); }
+  // the wrench rows' bounds of this tick (a contact schedule's ramps), into the contacts level
+  void set_wrench_bounds(const Eigen::Ref<const Vector>& lw, const Eigen::Ref<const Vector>& uw);
 
   const HierarchyResult& result() const { return result_; }
   // seconds inside the solver calls of the last solve()
@@ -69,6 +71,10 @@ class LqpTick : public Tick {
   bool run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t,
            LevelSolver& solver);
   const FullLqp& lqp() const { return lqp_; }
+  void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                         const Eigen::Ref<const Vector>& uw) override {
+    lqp_.set_wrench_bounds(lw, uw);
+  }
 
  private:
   FullLqp lqp_;

@@ -100,6 +100,16 @@ bool QpWbcTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
   return ok;
 }
 
+void QpWbcTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                                  const Eigen::Ref<const Vector>& uw) {
+  check_wrench_bounds("qp_wbc", s_.Cw, lw, uw);
+  const auto nw = lw.size();
+  s_.lw = lw;
+  s_.uw = uw;
+  qp_.l.head(nw) = lw;
+  qp_.u.head(nw) = uw;
+}
+
 void QpWbcTick::finish(const Eigen::Ref<const Vector>& x) {
   const auto t0 = Clock::now();
   if (x.size() != nx_) throw std::invalid_argument("qp_wbc: solution of wrong size");

@@ -26,6 +26,9 @@ class QpWbcTick : public Tick {
   bool build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t);
   // τ, q̈ and the wrenches from the QP's solution x
   void finish(const Eigen::Ref<const Vector>& x);
+  // the wrench rows' bounds of this tick (a contact schedule's ramps), into the QP's l and u
+  void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                         const Eigen::Ref<const Vector>& uw) override;
 
   QpBuffers& qp() { return qp_; }
   const Vector& tau() const { return tau_; }

@@ -24,6 +24,10 @@ inline double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
+// That lw and uw have one entry per row of Cw (what Tick::set_wrench_bounds takes).
+void check_wrench_bounds(const char* controller, const Matrix& Cw,
+                         const Eigen::Ref<const Vector>& lw, const Eigen::Ref<const Vector>& uw);
+
 // The robot's dynamics and tasks of one controller.
 class Tick {
  public:
@@ -40,6 +44,20 @@ class Tick {
   void set_contact_points(const std::vector<Matrix>& points, const std::vector<Matrix>& bases) {
     dyn_.set_contact_points(points, bases);
   }
+
+  // -- a contact set that changes (the mirror of Controller.select_contacts)
+  // The contacts the tick holds: increasing indices into the contact frames (every contact
+  // until called). A change re-sizes the dynamics' contact buffers; the controller's QPs follow
+  // when its settings for the new set (wrench inequalities, tasks) are handed over again
+  // (configure), which sizes them. The same set again does nothing and allocates nothing.
+  // Returns whether the set changed.
+  bool select_contacts(const std::vector<int>& active);
+  // This tick's bounds lw ≤ Cw f ≤ uw on the active contacts' wrench rows (the normal-force
+  // bounds of a contact that unloads or has just landed), (nw,) each as the configured Cw's
+  // rows; copied into the QPs without allocating. A tick that does not follow a contact
+  // schedule refuses.
+  virtual void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                                 const Eigen::Ref<const Vector>& uw);
 
  protected:
   // dynamics and tasks at (q, v, t); times the dynamics stage

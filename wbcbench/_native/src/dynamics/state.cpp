@@ -72,6 +72,8 @@ RobotDynamics::RobotDynamics(const std::string& model,
   com_.setZero(3);
   acom_.setZero(3);
   dJv_contact_.setZero(nc);
+  active_.reserve(contact_frames.size());
+  for (int i = 0; i < static_cast<int>(contact_frames.size()); ++i) active_.push_back(i);
   contact_points_.assign(contact_frames.size(), Matrix::Zero(0, 3));
   contact_bases_.assign(contact_frames.size(), Matrix::Zero(0, 0));
   J_task_.assign(task_frames.size(), Matrix::Zero(6, nv));
@@ -112,21 +114,46 @@ void RobotDynamics::set_contact_points(const std::vector<Matrix>& points,
   }
   contact_points_ = points;
   contact_bases_ = bases;
-  redundant_ = std::any_of(points.begin(), points.end(), [](const Matrix& p) { return p.rows() > 0; });
+  size_contacts();
+}
+
+void RobotDynamics::select_contacts(const std::vector<int>& active) {
+  const int n = static_cast<int>(impl_->contact_ids.size());
+  for (size_t j = 0; j < active.size(); ++j) {
+    if (active[j] < 0 || active[j] >= n || (j > 0 && active[j] <= active[j - 1]))
+      throw std::invalid_argument(
+          "select_contacts: the active contacts are increasing indices into the " +
+          std::to_string(n) + " contact frames");
+  }
+  if (active == active_) return;
+  active_.assign(active.begin(), active.end());  // within the capacity reserved at set-up
+  size_contacts();
+}
+
+void RobotDynamics::size_contacts() {
+  int rows = 0, independent = 0;
+  redundant_ = false;
+  for (int i : active_) {
+    const Matrix& p = contact_points_[i];
+    rows += p.rows() == 0 ? 6 : 3 * static_cast<int>(p.rows());
+    independent += p.rows() == 0 ? 6 : static_cast<int>(contact_bases_[i].rows());
+    redundant_ = redundant_ || p.rows() > 0;
+  }
   J_contact_.setZero(rows, impl_->model.nv);
   dJv_contact_.setZero(rows);
-  J_k_.setZero(independent, impl_->model.nv);
-  dJv_k_.setZero(independent);
+  J_k_.setZero(redundant_ ? independent : 0, impl_->model.nv);
+  dJv_k_.setZero(redundant_ ? independent : 0);
   T_.setZero(redundant_ ? independent : 0, redundant_ ? rows : 0);
-  for (size_t i = 0, row = 0, out = 0; redundant_ && i < points.size(); ++i) {
-    if (points[i].rows() == 0) {
+  for (size_t j = 0, row = 0, out = 0; redundant_ && j < active_.size(); ++j) {
+    const Matrix& basis = contact_bases_[active_[j]];
+    if (contact_points_[active_[j]].rows() == 0) {
       T_.block(out, row, 6, 6).setIdentity();
       row += 6;
       out += 6;
     } else {
-      T_.block(out, row, bases[i].rows(), bases[i].cols()) = bases[i];
-      row += bases[i].cols();
-      out += bases[i].rows();
+      T_.block(out, row, basis.rows(), basis.cols()) = basis;
+      row += basis.cols();
+      out += basis.rows();
     }
   }
 }
@@ -229,7 +256,8 @@ double RobotDynamics::update(const Eigen::Ref<const Vector>& q_in,
     R_task_[i] = d.oMf[fid].rotation();
   }
  
-  for (size_t i = 0, row = 0; i < impl_->contact_ids.size(); ++i) {
+  for (size_t a = 0, row = 0; a < active_.size(); ++a) {
+    const int i = active_[a];
     const auto fid = impl_->contact_ids[i];
     impl_->jacobian.setZero();
     pin::getFrameJacobian(m, d, fid, pin::LOCAL, impl_->jacobian);
@@ -255,7 +283,8 @@ double RobotDynamics::update(const Eigen::Ref<const Vector>& q_in,
     }
   }
   // the independent rows (RobotState.contact_constraint)
-  for (size_t i = 0, row = 0, out = 0; redundant_ && i < contact_points_.size(); ++i) {
+  for (size_t a = 0, row = 0, out = 0; redundant_ && a < active_.size(); ++a) {
+    const int i = active_[a];
     if (contact_points_[i].rows() == 0) {
       J_k_.middleRows(out, 6) = J_contact_.middleRows(row, 6);
       dJv_k_.segment(out, 6) = dJv_contact_.segment(row, 6);

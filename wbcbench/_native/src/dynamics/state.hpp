@@ -45,6 +45,7 @@ class RobotDynamics {
   const Vector& task_drift(int i) const { return dJv_task_.at(i); }   // (6,)
   const Vector& task_position(int i) const { return p_task_.at(i); }  // (3,) world
   const Matrix& task_rotation(int i) const { return R_task_.at(i); }  // (3, 3) world
+  // the active contacts' (select_contacts), stacked in their order
   const Matrix& contact_jacobian() const { return J_contact_; }      // (Σ dim, nv)
   const Vector& contact_drift() const { return dJv_contact_; }       // (Σ dim,)
   // Contacts made of points (RobotState.contact_jacobian with point sets): one (N, 3) matrix
@@ -56,6 +57,11 @@ class RobotDynamics {
   void set_contact_points(const std::vector<Matrix>& points, const std::vector<Matrix>& bases);
   const std::vector<Matrix>& contact_points() const { return contact_points_; }
   const std::vector<Matrix>& contact_bases() const { return contact_bases_; }
+  // The contacts the Jacobians and drifts above hold (Controller.select_contacts): increasing
+  // indices into the contact frames; every contact until called. A change re-sizes the contact
+  // buffers to the active rows (the next update() fills them); the same set again does nothing.
+  void select_contacts(const std::vector<int>& active);
+  const std::vector<int>& active_contacts() const { return active_; }
   // RobotState.contact_constraint: the rows of J_c q̈ + J̇_c q̇ = 0 that are independent by
   // construction (T times a point set's rows; a flat contact's 6); the contact Jacobian and
   // drift themselves when every contact is flat
@@ -114,7 +120,10 @@ class RobotDynamics {
   std::vector<Matrix> J_kin_, R_kin_;
   std::vector<Matrix> contact_points_;  // per contact: (N, 3), or (0, 3) for a flat one
   std::vector<Matrix> contact_bases_;   // per contact: (r, 3N), or (0, 0) for a flat one
-  bool redundant_ = false;              // some contact is a point set
+  // sizes the contact buffers and the map T_ for the active contacts
+  void size_contacts();
+  std::vector<int> active_;             // the active contacts (select_contacts)
+  bool redundant_ = false;              // some active contact is a point set
   Matrix J_k_, T_;
   Vector dJv_k_;
   std::vector<Vector> p_kin_;

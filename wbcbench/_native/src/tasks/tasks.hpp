@@ -36,6 +36,13 @@ class TaskSet {
   int offset(int i) const { return offsets_.at(i); }
   int dim(int i) const { return static_cast<int>(specs_.at(i).rows.size()); }
   const TaskSpec& spec(int i) const { return specs_.at(i); }
+  // task i's reference value for the next ticks, when it is sampled (Trajectory::sampled):
+  // (dim(i),) each, in the task's selected rows
+  void set_sample(int i, const Eigen::Ref<const Eigen::VectorXd>& x,
+                  const Eigen::Ref<const Eigen::VectorXd>& xd,
+                  const Eigen::Ref<const Eigen::VectorXd>& xdd) {
+    specs_.at(i).reference.set(x, xd, xdd);
+  }
 
   // Every task at (q, v, t) with the dynamics of that state; allocates nothing.
   void evaluate(const RobotDynamics& dyn, const Eigen::Ref<const Vector>& q,

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace wbcbench {
 
@@ -56,6 +57,30 @@ Trajectory Trajectory::waypoints(Kind kind, const std::vector<double>& times,
   return out;
 }
 
+Trajectory Trajectory::sampled(int dim) {
+  if (dim < 0) throw std::invalid_argument("sampled trajectory: dim must be ≥ 0");
+  Trajectory out;
+  out.kind_ = Kind::kSampled;
+  out.dim_ = dim;
+  out.value_.setZero(dim);
+  out.rate_.setZero(dim);
+  out.acceleration_.setZero(dim);
+  return out;
+}
+
+void Trajectory::set(const Eigen::Ref<const Eigen::VectorXd>& x,
+                     const Eigen::Ref<const Eigen::VectorXd>& xd,
+                     const Eigen::Ref<const Eigen::VectorXd>& xdd) {
+  if (kind_ != Kind::kSampled)
+    throw std::invalid_argument("only a sampled trajectory takes its value from outside");
+  if (x.size() != dim_ || xd.size() != dim_ || xdd.size() != dim_)
+    throw std::invalid_argument("sampled trajectory: x, ẋ and ẍ of " + std::to_string(dim_) +
+                                " entries each");
+  value_ = x;
+  rate_ = xd;
+  acceleration_ = xdd;
+}
+
 int Trajectory::piece(double t) const {
   const auto it = std::upper_bound(times_.begin(), times_.end(), t);
   return static_cast<int>(it - times_.begin()) - 1;
@@ -64,6 +89,11 @@ int Trajectory::piece(double t) const {
 void Trajectory::sample(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> xd,
                         Eigen::Ref<Eigen::VectorXd> xdd) const {
   switch (kind_) {
+    case Kind::kSampled:
+      x = value_;
+      xd = rate_;
+      xdd = acceleration_;
+      return;
     case Kind::kConstant:
       x = value_;
       xd.setZero();

@@ -11,7 +11,7 @@ namespace wbcbench {
 
 class Trajectory {
  public:
-  enum class Kind { kConstant, kSinusoid, kCubic, kMinimumJerk, kLinear };
+  enum class Kind { kConstant, kSinusoid, kCubic, kMinimumJerk, kLinear, kSampled };
 
   // constant: value (dim,)
   static Trajectory constant(const Eigen::VectorXd& value);
@@ -26,6 +26,13 @@ class Trajectory {
   static Trajectory waypoints(Kind kind, const std::vector<double>& times,
                               const Eigen::MatrixXd& values);
 
+  // a reference with no native form (a walk's CoM plan, heading or swing path): the Python
+  // side samples it and hands (x, ẋ, ẍ) over before each tick (set); zeros until then
+  static Trajectory sampled(int dim);
+  // a sampled trajectory's value for the next ticks, (dim,) each; allocates nothing
+  void set(const Eigen::Ref<const Eigen::VectorXd>& x, const Eigen::Ref<const Eigen::VectorXd>& xd,
+           const Eigen::Ref<const Eigen::VectorXd>& xdd);
+
   int dim() const { return dim_; }
   // (x, ẋ, ẍ) at t into the given (dim,) outputs; allocates nothing
   void sample(double t, Eigen::Ref<Eigen::VectorXd> x, Eigen::Ref<Eigen::VectorXd> xd,
@@ -38,6 +45,7 @@ class Trajectory {
   Kind kind_ = Kind::kConstant;
   int dim_ = 0;
   Eigen::VectorXd value_, amplitude_, first_, last_;
+  Eigen::VectorXd rate_, acceleration_;  // a sampled trajectory's ẋ and ẍ
   double frequency_ = 0.0, t0_ = 0.0, phase_ = 0.0;
   std::vector<double> times_;
   Eigen::MatrixXd table_;  // cubic coefficients or waypoint values
