@@ -19,7 +19,7 @@ from wbcbench.robots.third_party import THIRD_PARTY
 from wbcbench.runs import check_scenario, plan_run
 from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import load_scenario, load_scenario_robot
-from wbcbench.sim.closed_loop import prepare_model, run_closed_loop
+from wbcbench.sim.closed_loop import RunResult, prepare_model, run_closed_loop
 
 MISSING = {name: dist for name, dist in third_party_robots().items() if dist}
 SCENARIOS = {
@@ -198,11 +198,15 @@ def test_validate_offers_the_exclude_list_of_talos_overlapping_bodies(capsys) ->
     assert result.status == "ok" and result.failures == 0, result.message
 
 
-def _icub_sway(elbow: float) -> tuple[object, np.ndarray, dict[str, np.ndarray]]:
+def _icub_sway(elbow: float) -> tuple[RunResult, np.ndarray, dict[str, np.ndarray]]:
     """to_osf (DAQP) on icub_stand_sway to t = 1.5 s, past the CoM's first peak (+20 mm at
     t = 1.25 s), with both elbows starting at ``elbow`` [rad]: the result, the joint positions
     (ticks × k) and the log."""
-    overrides = ("duration=1.5", f"initial.joints.l_elbow={elbow}", f"initial.joints.r_elbow={elbow}")
+    overrides = (
+        "duration=1.5",
+        f"initial.joints.l_elbow={elbow}",
+        f"initial.joints.r_elbow={elbow}",
+    )
     run = plan_run(load_scenario("icub_stand_sway", overrides), controller="to_osf", solver="daqp")
     q: list[np.ndarray] = []
     result = run_closed_loop(run, on_step=lambda state, out: q.append(state.q[7:].copy()))
