@@ -12,7 +12,7 @@ LOCK              := requirements/lock.txt
 PIP_VERSION       := 26.3
 PIP_TOOLS_VERSION := 7.6.2
 LOCK_VENV         := .venv-lock
-LOCK_FLAGS        := --extra dev --extra robots --extra peers --extra qpbench --all-build-deps --allow-unsafe --strip-extras \
+LOCK_FLAGS        := --extra dev --extra robots --extra icub --extra peers --extra qpbench --all-build-deps --allow-unsafe --strip-extras \
                      --no-emit-index-url --no-emit-find-links --no-emit-trusted-host
 
 .PHONY: venv native test test-numerics test-fast lint bench bench-full bench-micro qp-test-set reference models clean lock upgrade

@@ -11,6 +11,7 @@ import pytest
 from wbcbench.cli import main
 from wbcbench.errors import ScenarioError
 from wbcbench.robots.loader import load_robot, third_party_robots
+from wbcbench.robots.third_party import THIRD_PARTY
 from wbcbench.runs import check_scenario
 from wbcbench.scenarios.load import (
     SCENARIO_DIR,
@@ -42,7 +43,8 @@ def test_shipped_scenarios_validate(name: str) -> None:
     loaded = load_scenario(name)
     missing = third_party_robots().get(loaded.spec.robot)
     if missing:
-        pytest.skip(f"{loaded.spec.robot}: {missing} is not installed (wbcbench[robots])")
+        extra = THIRD_PARTY[loaded.spec.robot].extra
+        pytest.skip(f"{loaded.spec.robot}: {missing} is not installed (wbcbench[{extra}])")
     # the robot as a run loads it: with the scenario's own frames (a sole plane) added
     check_scenario(loaded, load_scenario_robot(loaded))
     assert len(loaded.hash) == 12

@@ -1,6 +1,8 @@
-"""The third-party robots (example-robot-data): loaded by name, validated and run unchanged.
+"""The third-party robots (example-robot-data, icub-models): loaded by name, validated and run
+unchanged.
 
-Skipped, with the reason, when the optional extra is not installed (`wbcbench[robots]`).
+Skipped, with the reason, when the optional extra is not installed (`wbcbench[robots]`,
+`wbcbench[icub]`).
 """
 
 from __future__ import annotations
@@ -17,23 +19,26 @@ from wbcbench.robots.third_party import THIRD_PARTY
 from wbcbench.runs import check_scenario, plan_run
 from wbcbench.scenarios.initial import initial_state
 from wbcbench.scenarios.load import load_scenario, load_scenario_robot
-from wbcbench.sim.closed_loop import prepare_model, run_closed_loop
+from wbcbench.sim.closed_loop import RunResult, prepare_model, run_closed_loop
 
 MISSING = {name: dist for name, dist in third_party_robots().items() if dist}
 SCENARIOS = {
     "talos": "talos_stand_sway",
     "talos_mesh": "talos_mesh_stand_sway",
     "g1": "g1_stand_sway",
+    "icub": "icub_stand_sway",
 }
 TORQUE_CONTROLLERS = sorted(
     name for name, cls in CONTROLLERS.items() if getattr(cls, "kind", "torque") == "torque"
 )
 
 
+def why_missing(name: str) -> str:
+    return f"{name}: {MISSING.get(name)} is not installed (wbcbench[{THIRD_PARTY[name].extra}])"
+
+
 def needs(name: str) -> pytest.MarkDecorator:
-    return pytest.mark.skipif(
-        name in MISSING, reason=f"{name}: {MISSING.get(name)} is not installed (wbcbench[robots])"
-    )
+    return pytest.mark.skipif(name in MISSING, reason=why_missing(name))
 
 
 @pytest.mark.parametrize("name", sorted(THIRD_PARTY))
@@ -41,7 +46,7 @@ def test_third_party_robot_loads_unchanged(name: str) -> None:
     if name in MISSING:
         with pytest.raises(ModelError, match=r"is not installed: pip install"):
             load_robot(name)
-        pytest.skip(f"{MISSING[name]} is not installed (wbcbench[robots])")
+        pytest.skip(why_missing(name))
     robot = load_robot(name)
     info = THIRD_PARTY[name].info
     for frame in (*info.contact_frames, *info.hand_frames, info.base_body, info.torso_body):
@@ -62,7 +67,7 @@ def test_talos_mimic_joints_are_fixed() -> None:
 @pytest.mark.parametrize("name", sorted(SCENARIOS))
 def test_scenario_validates_and_stands(name: str) -> None:
     if name in MISSING:
-        pytest.skip(f"{MISSING[name]} is not installed (wbcbench[robots])")
+        pytest.skip(why_missing(name))
     loaded = load_scenario(SCENARIOS[name], ("duration=0.3",))
     check_scenario(loaded, load_scenario_robot(loaded))
     result = run_closed_loop(plan_run(loaded, controller="qp_wbc", solver="proxqp"))
@@ -75,7 +80,7 @@ def test_scenario_validates_and_stands(name: str) -> None:
 @pytest.mark.parametrize("name", sorted(SCENARIOS))
 def test_every_torque_controller_holds_the_robot(name: str, controller: str) -> None:
     if name in MISSING:
-        pytest.skip(f"{MISSING[name]} is not installed (wbcbench[robots])")
+        pytest.skip(why_missing(name))
     loaded = load_scenario(SCENARIOS[name], ("duration=1",))
     result = run_closed_loop(plan_run(loaded, controller=controller, solver="daqp"))
     assert not result.fell, result.message
@@ -191,3 +196,42 @@ def test_validate_offers_the_exclude_list_of_talos_overlapping_bodies(capsys) ->
     loaded = load_scenario("talos_stand_sway", ("duration=0.3", excluded))
     result = run_closed_loop(plan_run(loaded, controller="lqp", solver="daqp"))
     assert result.status == "ok" and result.failures == 0, result.message
+
+
+def _icub_sway(elbow: float) -> tuple[RunResult, np.ndarray, dict[str, np.ndarray]]:
+    """to_osf (DAQP) on icub_stand_sway to t = 1.5 s, past the CoM's first peak (+20 mm at
+    t = 1.25 s), with both elbows starting at ``elbow`` [rad]: the result, the joint positions
+    (ticks × k) and the log."""
+    overrides = (
+        "duration=1.5",
+        f"initial.joints.l_elbow={elbow}",
+        f"initial.joints.r_elbow={elbow}",
+    )
+    run = plan_run(load_scenario("icub_stand_sway", overrides), controller="to_osf", solver="daqp")
+    q: list[np.ndarray] = []
+    result = run_closed_loop(run, on_step=lambda state, out: q.append(state.q[7:].copy()))
+    return result, np.array(q), result.log.arrays()
+
+
+@needs("icub")
+def test_icub_sway_keeps_the_elbows_inside_their_range() -> None:
+    """Holding the hands in the world while the CoM (and the shoulders with it) moves 20 mm
+    back asks iCub's short arms to straighten the elbow by about 0.5 rad. From elbows at 0.8 rad
+    that passes the elbow's lower limit (0.262 rad); the torque controllers know no joint
+    position limit, so MuJoCo's limit stops the arm, the hands drift and the hierarchy pulls
+    the chest and pelvis after them. The scenario starts the elbows at 1.2 rad: every joint
+    stays inside its range and the hands and chest are held."""
+    robot = load_robot("icub")
+    elbows = [robot.joint_index(j) for j in ("l_elbow", "r_elbow")]
+    result, q, log = _icub_sway(0.8)
+    assert result.status == "ok"  # the QPs are all solved: nothing in the run says why
+    assert np.all(q[:, elbows].min(axis=0) < robot.q_min[elbows] + 1e-3)
+    assert np.max(log["err.torso.rot"]) > 0.1 and np.max(log["err.l_hand.pos"]) > 0.01
+
+    result, q, log = _icub_sway(1.2)
+    assert result.status == "ok" and result.failures == 0, result.message
+    margin = np.minimum(q - robot.q_min, robot.q_max - q)
+    assert margin.min() > 0.02
+    assert np.max(log["err.torso.rot"]) < 1e-3
+    for hand in ("l_hand", "r_hand"):
+        assert np.max(log[f"err.{hand}.pos"]) < 1e-3, hand

@@ -360,7 +360,8 @@ def resolve_scenarios(patterns: Sequence[str], file: str, key: str) -> list[str]
     for i, pattern in enumerate(patterns):
         if _is_glob(pattern):
             # a glob leaves out the shipped scenarios of third-party robots that are not
-            # installed (`wbcbench[robots]`); named explicitly, one is an error saying so
+            # installed (`wbcbench[robots]`, `wbcbench[icub]`); named explicitly, one is an
+            # error saying so
             names = [n for n in fnmatch.filter(available_scenarios(), pattern) if _installed(n)]
             if not names:  # a file glob, e.g. my_scenarios/*.yaml
                 names = sorted(str(p) for p in Path().glob(pattern) if p.suffix == ".yaml")

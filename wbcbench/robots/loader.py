@@ -269,7 +269,7 @@ def load_robot(
         except ModelError:
             raise ModelError(
                 f"robot {text!r} is a model of {entry.distribution}, which is not installed: "
-                f"pip install '{entry.distribution}' (or 'wbcbench[robots]')"
+                f"pip install '{entry.distribution}' (or 'wbcbench[{entry.extra}]')"
             ) from None
         return _cached_load(path, text, entry.info, shares, frames)
     found = plugins.find(GROUP, text, _check)

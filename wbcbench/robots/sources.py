@@ -4,8 +4,9 @@ Pinocchio and MuJoCo each read robot files their own way, and neither resolves e
 robot package ships:
 
 - URDF mesh paths ``package://<package>/<path>`` (and ``package:///<absolute path>``) are
-  resolved against the ``package_dirs`` a scenario gives and, when installed, the data folder of
-  ``example-robot-data`` (its cmeel prefix); relative mesh paths become absolute.
+  resolved against the ``package_dirs`` a scenario gives and, when installed, the data folders of
+  ``example-robot-data`` (its cmeel prefix) and of ``icub-models`` (the environment's
+  ``share``); relative mesh paths become absolute.
 - URDF ``<mimic>`` joints are written as fixed joints at their offset (the master joint's zero):
   a whole-body controller drives every joint with its own torque, and a mimic joint has none.
 - MJCF ``<include file=…>`` elements are checked here (a missing or circular include is named
@@ -52,12 +53,17 @@ class ModelSource:
 
 def default_package_dirs() -> list[Path]:
     """Folders searched for ``package://`` paths after the scenario's own: the ``share`` folder
-    of every cmeel prefix on ``sys.path`` (where ``example-robot-data`` installs its robots)."""
+    of every cmeel prefix on ``sys.path`` (where ``example-robot-data`` installs its robots),
+    then the environment's own ``share`` folder (where a wheel's data files go: ``icub-models``
+    installs ``share/iCub``)."""
     dirs = []
     for entry in sys.path:
         share = Path(entry or ".") / "cmeel.prefix" / "share"
         if share.is_dir():
             dirs.append(share)
+    share = Path(sys.prefix) / "share"
+    if share.is_dir() and share not in dirs:
+        dirs.append(share)
     return dirs
 
 

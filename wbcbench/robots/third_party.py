@@ -4,7 +4,8 @@ Each entry names a model file inside an installed distribution (a ``package://``
 as :mod:`wbcbench.robots.sources` resolves mesh paths) and the facts a scenario needs that the
 file does not carry: contact frames and sole sizes, hand, base and torso frames. The files are
 read as published, with no edits; what the loader changes (floor, mimic joints) ``validate``
-prints. ``pip install 'wbcbench[robots]'`` installs them.
+prints. ``pip install 'wbcbench[robots]'`` installs TALOS and G1, ``pip install 'wbcbench[icub]'``
+iCub.
 """
 
 from __future__ import annotations
@@ -23,12 +24,14 @@ class ThirdPartyRobot:
         uri: ``package://<package>/<path>`` of the model file.
         info: contact frames, sole rectangles [m] and named frames.
         summary: one line for ``wbcbench list``.
+        extra: the wbcbench extra that installs the distribution (``wbcbench[<extra>]``).
     """
 
     distribution: str
     uri: str
     info: RobotInfo
     summary: str
+    extra: str = "robots"
 
 
 _ERD = "example-robot-data==6.0.0"
@@ -49,6 +52,14 @@ _TALOS = RobotInfo(
     base_body="base_link",
     torso_body="torso_2_link",
 )
+
+_ICUB = "icub-models==3.2.0"
+# iCub's foot collides through one box, 160 × 72 × 1 mm, at (30, ±5, 14) mm of the foot link,
+# whose z axis points down; the sole frame sits at (3.5, 0, 4) mm of it, turned half a turn
+# about x (z up). In the sole frame the box spans x −53.5…106.5 mm and y −31…41 mm (left foot;
+# mirrored for the right), and its bottom face lies 10.5 mm below the sole plane.
+_ICUB_LEFT_SOLE = ContactRect(-0.0535, 0.1065, -0.031, 0.041)
+_ICUB_RIGHT_SOLE = ContactRect(-0.0535, 0.1065, -0.041, 0.031)
 
 THIRD_PARTY: dict[str, ThirdPartyRobot] = {
     "talos": ThirdPartyRobot(
@@ -74,5 +85,18 @@ THIRD_PARTY: dict[str, ThirdPartyRobot] = {
             torso_body="torso_link",
         ),
         summary="Unitree G1, 29 DoF, point-contact feet (example-robot-data)",
+    ),
+    "icub": ThirdPartyRobot(
+        distribution=_ICUB,
+        uri="package://iCub/robots/iCubGazeboV2_5/model.urdf",
+        info=RobotInfo(
+            contact_frames=("l_sole", "r_sole"),
+            contact_rects={"l_sole": _ICUB_LEFT_SOLE, "r_sole": _ICUB_RIGHT_SOLE},
+            hand_frames=("l_hand", "r_hand"),
+            base_body="root_link",
+            torso_body="chest",
+        ),
+        summary="IIT iCub v2.5, 32 DoF, the simulation model iCubGazeboV2_5 (icub-models)",
+        extra="icub",
     ),
 }
