@@ -213,6 +213,13 @@ def _icub_sway(elbow: float) -> tuple[RunResult, np.ndarray, dict[str, np.ndarra
     return result, np.array(q), result.log.arrays()
 
 
+def _metric(result: RunResult, name: str) -> float:
+    from wbcbench.bench.run_metrics import run_metrics
+
+    rows = run_metrics(result, [], None, 0)
+    return next(row.value for row in rows if row.metric == name)
+
+
 @needs("icub")
 def test_icub_sway_keeps_the_elbows_inside_their_range() -> None:
     """Holding the hands in the world while the CoM (and the shoulders with it) moves 20 mm
@@ -224,14 +231,19 @@ def test_icub_sway_keeps_the_elbows_inside_their_range() -> None:
     robot = load_robot("icub")
     elbows = [robot.joint_index(j) for j in ("l_elbow", "r_elbow")]
     result, q, log = _icub_sway(0.8)
-    assert result.status == "ok"  # the QPs are all solved: nothing in the run says why
+    assert result.status == "ok"  # the QPs are all solved ...
     assert np.all(q[:, elbows].min(axis=0) < robot.q_min[elbows] + 1e-3)
     assert np.max(log["err.torso.rot"]) > 0.1 and np.max(log["err.l_hand.pos"]) > 0.01
+    # ... but the run's log and metrics say a joint sat at its limit, and for how long
+    assert np.min(log["joint_margin"]) < 1e-3
+    at_limit = _metric(result, "ticks_at_joint_limit")
+    assert at_limit == np.sum(log["joint_margin"] < 1e-3) > 0
 
     result, q, log = _icub_sway(1.2)
     assert result.status == "ok" and result.failures == 0, result.message
     margin = np.minimum(q - robot.q_min, robot.q_max - q)
     assert margin.min() > 0.02
+    assert _metric(result, "ticks_at_joint_limit") == 0
     assert np.max(log["err.torso.rot"]) < 1e-3
     for hand in ("l_hand", "r_hand"):
         assert np.max(log[f"err.{hand}.pos"]) < 1e-3, hand

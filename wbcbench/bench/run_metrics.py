@@ -6,9 +6,11 @@
 * constraints: torque-limit excess (commanded), friction / CoP / normal-force violations of the
   predicted (commanded) and simulated wrenches, each the maximum over the window (friction,
   CoP and yaw on the ticks where the contact carries load; ``unloaded_contact_ticks_*`` counts
-  the others); for kinematic runs instead, ``joint_limit_violation`` [rad],
-  ``max_contact_drift`` [m] (the held contact frames' largest displacement since the start) and
-  ``min_collision_distance`` [m];
+  the others); for kinematic runs instead, ``max_contact_drift`` [m] (the held contact frames'
+  largest displacement since the start) and ``min_collision_distance`` [m];
+* joint limits, over the whole run: ``joint_limit_violation`` [rad] and ``ticks_at_joint_limit``
+  (a joint within 1e-3 rad of a position limit; the torque-level controllers do not hold
+  position limits, so a task that needs such a joint gives way while every QP is solved);
 * failures: failed control ticks;
 * amendments: ``amend_mean`` / ``amend_max`` per task over the window, for controllers that
   report ``diag.amend.<task>`` (to_osf);
@@ -32,6 +34,8 @@ from wbcbench.tasks.tasks import ERROR_UNITS
 from wbcbench.tasks.walking import WalkPlan
 
 WRENCH = ("fx", "fy", "fz", "mx", "my", "mz")
+#: a joint closer than this to a position limit is at it [rad] (``ticks_at_joint_limit``)
+JOINT_AT_LIMIT = 1e-3
 
 
 @dataclass
@@ -117,8 +121,11 @@ def run_metrics(
                 rows.append(MetricRow("*", f"{key}_violation_{source}", value, units[key]))
             rows.append(MetricRow("*", f"unloaded_contact_ticks_{source}", unloaded, "ticks"))
     if "joint_margin" in cols:
-        violation = max(0.0, -float(np.min(cols["joint_margin"])))
+        margin = cols["joint_margin"]
+        violation = max(0.0, -float(np.min(margin, initial=np.inf)))
         rows.append(MetricRow("*", "joint_limit_violation", violation, "rad"))
+        at_limit = float(np.sum(margin < JOINT_AT_LIMIT))
+        rows.append(MetricRow("*", "ticks_at_joint_limit", at_limit, "ticks"))
     if "contact_drift" in cols:
         drift = float(np.max(cols["contact_drift"], initial=0.0))
         rows.append(MetricRow("*", "max_contact_drift", drift, "m"))

@@ -396,6 +396,13 @@ def run_closed_loop(
                     row[f"foot.{f}.yaw"] = yaws[i]
                 row["touchdowns"] = float(len(schedule.confirmed))
             row["base_z"] = float(data.qpos[2])
+            # the simulated joints' smallest distance to a position limit [rad]: the torque-level
+            # controllers do not hold position limits, so a task that drives a joint into one
+            # gives way while every QP is solved
+            joints = q[7:]
+            row["joint_margin"] = float(
+                np.min(np.minimum(joints - robot.q_min, robot.q_max - joints), initial=np.inf)
+            )
             # the robot's own CoM and task errors: with perturbations the controller's state
             # (noisy, on its model) is not the robot's; measure it on the simulated one
             true_state = RobotState(robot, q, v, true_data) if perturbed else state
