@@ -279,6 +279,15 @@ def test_a_sweep_reuses_another_folders_rows_of_the_same_runs(tmp_path: Path) ->
         plan(write(tmp_path, text, "reference.yaml")), reference, show_progress=False, reuse=bench
     )
     assert (again.reused, again.computed, again.resumed) == (0, 0, 3)
+    # --force recomputes every row: nothing is copied in its place
+    forced = run_sweep(
+        plan(write(tmp_path, text, "reference.yaml")),
+        reference,
+        show_progress=False,
+        reuse=bench,
+        rerun="all",
+    )
+    assert (forced.reused, forced.computed) == (0, 3)
 
 
 @pytest.mark.usefixtures("runs_in_process")

@@ -910,7 +910,7 @@ def run_sweep(
 
     ``reuse`` names another results folder (e.g. ``make bench``'s) whose closed-loop and timing
     rows with the same run id (the same scenario, settings and code) are copied instead of
-    computed again (:meth:`~wbcbench.bench.results.ResultsStore.reuse`).
+    computed again (:meth:`~wbcbench.bench.results.ResultsStore.reuse`); not with ``rerun="all"``.
 
     The sweep holds ``out`` for its whole run (:class:`~wbcbench.bench.lock.SweepLock`): it
     starts only once no earlier sweep on the folder, nor any process one started, is alive.
@@ -955,7 +955,7 @@ def _run_sweep(
             }
         )
     report = SweepReport()
-    if reuse is not None:
+    if reuse is not None and rerun != "all":  # --force recomputes; it copies nothing
         copyable = {
             run_id(job.run, version, extra=job.extra): job
             for job in plan.jobs
