@@ -181,7 +181,7 @@ def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunR
                 f"t = {opts['start']:g} s (it ended early: the recorder fell or failed); "
                 "set `record_with` or `start` in the timing matrix"
             )
-        load_before = machine_conditions()["load_1min"]
+        load_before = round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else float("nan")
         probe_before = speed_probe()
         timings = replay(
             job.run,
