@@ -141,11 +141,12 @@ def machine_conditions(watch: CpuWatch | None = None) -> dict[str, Any]:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     cores = os.cpu_count() or 1
     blas = [i.get("num_threads", 0) for i in threadpool_info() if i.get("user_api") == "blas"]
-    other_load = max(0.0, load - 1.0) / cores
+    # the verdict is taken on the recorded (rounded) figure, so a reader can check it
+    other_load = round(max(0.0, load - 1.0) / cores, 2)
     out: dict[str, Any] = {
         "load_1min": round(load, 2),
         "load_per_core": round(load / cores, 2),
-        "other_load_per_core": round(other_load, 2),
+        "other_load_per_core": other_load,
         "busy": bool(other_load > BUSY_LOAD_PER_CORE),
         "busy_basis": "load",
         "cpu": cpu_model(),
@@ -153,9 +154,9 @@ def machine_conditions(watch: CpuWatch | None = None) -> dict[str, Any]:
         "blas_threads": max(blas, default=0),
     }
     if watch is not None:
-        other_cpu = watch.other_per_core()
+        other_cpu = round(watch.other_per_core(), 2)
         out.update(
-            other_cpu_per_core=round(other_cpu, 2),
+            other_cpu_per_core=other_cpu,
             busy=bool(other_cpu > BUSY_LOAD_PER_CORE),
             busy_basis="cpu",
         )
