@@ -650,3 +650,63 @@ def test_provenance_keeps_each_code_version_that_wrote_to_a_folder(
     info = json.loads((tmp_path / "provenance.json").read_text())
     assert info["source_hash"] == "x"
     assert [h["source_hash"] for h in info["history"]] == [first["source_hash"]]
+
+
+def test_the_controllers_of_one_scenario_and_solver_are_timed_together_interleaved(
+    tmp_path: Path,
+) -> None:
+    """Two controllers on one scenario and solver are one group: they replay the same states
+    in turns of ``interleave`` ticks, their rows name the group and its block, and they share
+    the machine conditions (the probes around the whole group). With ``interleave: 0`` each
+    row is timed alone."""
+    text = TINY.format(tracking_solvers="daqp", timing_solvers="daqp")
+    text = "version: 1\n" + text[text.index("timing:") :]
+    text = text.replace("controllers: [qp_wbc]", "controllers: [qp_wbc, hqp]")
+    report = run_sweep(plan(write(tmp_path, text)), tmp_path / "out", show_progress=False)
+    assert report.timed == 2
+    runs = pd.read_csv(tmp_path / "out" / "runs.csv")
+    assert sorted(runs["controller"]) == ["hqp", "qp_wbc"] and set(runs["status"]) == {"ok"}
+    conditions = [json.loads(s)["conditions"] for s in runs["settings"]]
+    assert conditions[0] == conditions[1]
+    group = conditions[0]["interleaved"]
+    assert group["rows"] == 2 and group["block_ticks"] == 10 and len(group["group"]) == 12
+    # every tick of each was replayed and timed
+    assert list(runs["ticks"]) == [12, 12]
+
+    alone = text.replace("probe_ticks: 5", "probe_ticks: 5\n    interleave: 0")
+    run_sweep(plan(write(tmp_path, alone, "alone.yaml")), tmp_path / "alone", show_progress=False)
+    runs = pd.read_csv(tmp_path / "alone" / "runs.csv")
+    conditions = [json.loads(s)["conditions"] for s in runs["settings"]]
+    assert all("interleaved" not in c for c in conditions)
+
+
+def test_interleaved_rows_step_in_turns_of_the_block_each_in_tick_order() -> None:
+    """The group steps block after block, the row that goes first rotating; each row's
+    replayer sees its ticks in order (it asserts so)."""
+    from wbcbench.bench import timing as T
+
+    order: list[tuple[str, int, int]] = []
+
+    class Row:
+        def __init__(self, name: str, n: int) -> None:
+            self.name, self.n, self.done = name, n, 0
+
+        @property
+        def running(self) -> bool:
+            return self.done < self.n
+
+        def step_block(self, first: int, last: int) -> None:
+            assert first == self.done
+            self.done = min(last, self.n)
+            order.append((self.name, first, self.done))
+
+    rows = [Row("a", 25), Row("b", 25)]
+    T.step_interleaved(rows, block=10)  # type: ignore[arg-type]
+    assert order == [
+        ("a", 0, 10),
+        ("b", 0, 10),
+        ("b", 10, 20),
+        ("a", 10, 20),
+        ("a", 20, 25),
+        ("b", 20, 25),
+    ]

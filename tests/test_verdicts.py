@@ -46,6 +46,7 @@ def _table3_folder(
     ratios: dict[str, float],
     busy: bool = False,
     probes: dict[str, tuple[float, float]] | None = None,
+    together: bool = False,
 ) -> Path:
     """hqp and osf_hqp timed on Table III's scenario with each solver of ``ratios``: 60 ticks
     (10 of warm-up) of noisy tick times whose medians stand in the given ratio."""
@@ -56,6 +57,8 @@ def _table3_folder(
         for controller, scale in (("hqp", ratio), ("osf_hqp", 1.0)):
             rid = f"{controller}-{solver}"
             conditions = _conditions(busy, (probes or {}).get(controller, (10.0, 10.2)))
+            if together:  # the pair was timed interleaved, in one group
+                conditions["interleaved"] = {"group": solver, "rows": 2, "block_ticks": 10}
             settings = {"warmup": 10, "recorder": "qp_wbc", "conditions": conditions}
             solve = 1e-4 * scale * noise * rng.uniform(0.97, 1.03, 60)
             log = {"t": np.arange(60) * 1e-3, "time.solve": solve, "time.total": 2 * solve}
@@ -109,22 +112,44 @@ def test_a_speed_timed_on_a_busy_machine_is_inconclusive_with_its_load(tmp_path:
     assert "2 of 2 runs behind it were timed on a busy machine (load 6.3" in rows.iloc[0]["reason"]
 
 
-def test_a_speed_timed_while_the_machine_changed_speed_is_inconclusive(tmp_path: Path) -> None:
-    """A fixed workload that ran 40 % slower around one run than around the other: their
-    ratio mixes two machines, whatever its interval over the ticks says."""
+def test_a_ratio_of_runs_timed_apart_is_widened_by_the_machines_speed_spread(
+    tmp_path: Path,
+) -> None:
+    """A fixed workload that ran 40 % slower around one run than around the other: the ratio
+    of the two runs timed apart mixes two machines' speeds, so its interval is widened by
+    that spread, and a ratio 1.3 times half the paper's can no longer be told from half. The
+    same two rows timed together, interleaved, met the same speeds: their ratio is decided."""
     probes = {"hqp": (10.0, 10.5), "osf_hqp": (14.0, 13.8)}
-    rows = _rows(_table3_folder(tmp_path, {"qpoases": T3_PAPER}, probes=probes), "Table III")
+    ratio = {"qpoases": 0.65 * T3_PAPER}
+    rows = _rows(_table3_folder(tmp_path / "apart", ratio, probes=probes), "Table III")
     assert list(rows["verdict"]) == ["inconclusive"]
+    reason = rows.iloc[0]["reason"]
+    assert f"contains {T3_PAPER / 2:.3g}× (half the paper's gain)" in reason
     assert (
-        "the machine's speed moved while the 2 runs behind it were timed: a fixed workload took "
-        "10–14 ms around them (+40 %, above 15 %)" in rows.iloc[0]["reason"]
+        "Its interval is widened by ±40 %, the spread of the machine's speed around the runs."
+        in reason
     )
-    # within the tolerance the same ratio is judged on its interval
-    steady = {"hqp": (10.0, 10.5), "osf_hqp": (11.0, 10.8)}
     rows = _rows(
-        _table3_folder(tmp_path / "steady", {"qpoases": T3_PAPER}, probes=steady), "Table III"
+        _table3_folder(tmp_path / "together", ratio, probes=probes, together=True), "Table III"
     )
     assert list(rows["verdict"]) == ["reproduced"]
+    assert "widened" not in rows.iloc[0]["reason"]
+
+
+def test_a_median_is_widened_by_the_speed_spread_around_its_run() -> None:
+    row = pd.Series(
+        {"run_id": "r", "settings": json.dumps({"conditions": {"speed_probe_ms": [10.0, 12.5]}})}
+    )
+    assert E.speed_spread([row]) == pytest.approx(0.25)
+    est = E.Estimate(100.0, 90.0, 110.0, "ticks").widen(0.25)
+    assert (est.value, est.lo, est.hi, est.widened) == (100.0, 72.0, 137.5, 0.25)
+    assert E.Estimate(100.0, 90.0, 110.0, "ticks").widen(0.0).note == ""
+    # rows of one interleaved group are timed together; a row alone is not
+    together = {"conditions": {"interleaved": {"group": "g1"}}}
+    a = pd.Series({"settings": json.dumps(together)})
+    assert E.timed_together([a, a.copy()])
+    assert not E.timed_together([a])
+    assert not E.timed_together([a, row])
 
 
 def test_the_judges_thresholds() -> None:

@@ -160,6 +160,13 @@ class TimingSpec(MatrixSpec):
         50.0, gt=0, description="abandon (skip) a combination slower than this per tick"
     )
     probe_ticks: int = Field(20, ge=1, description="ticks after which max_step_ms is checked")
+    interleave: int = Field(
+        10,
+        ge=0,
+        description="the rows of one scenario, solver, tier, mode and impl (the controllers and "
+        "their configurations) are timed together, each stepping this many ticks in turn, so "
+        "that a change in the machine's speed falls on all alike; 0: each row alone",
+    )
     keep_log: bool = Field(True, description="save the per-tick stage times of each run")
     check_factor: float | None = Field(
         CHECK_FACTOR,
@@ -606,6 +613,7 @@ def _timing_options(matrix: TimingSpec, loaded: Any, file: str, key: str) -> dic
         **_recorder_options(_recorders(matrix, loaded, file, key)),
         max_step_ms=matrix.max_step_ms,
         probe_ticks=matrix.probe_ticks,
+        interleave=matrix.interleave,
         check_factor=matrix.check_factor,
         **({} if matrix.keep_log else {"keep_log": False}),
     )
@@ -940,7 +948,12 @@ def _run_sweep(
     from wbcbench.bench.executors import make_executor
     from wbcbench.bench.results import ResultsStore
     from wbcbench.bench.runner import code_version, run_id
-    from wbcbench.bench.timing import guarded_timing_job, run_hls_scaling, skipped_record
+    from wbcbench.bench.timing import (
+        guarded_timing_group,
+        run_hls_scaling,
+        skipped_record,
+        timing_groups,
+    )
 
     store = ResultsStore(out)
     version = code_version(store)
@@ -1021,12 +1034,16 @@ def _run_sweep(
                     bar.set_postfix_str(job.label[:60])
                     finished(job, record)
                     bar.update()
-        for job, rid in timing:
-            if budget[0] <= 0:
+        for group in timing_groups(timing):
+            group = group[: max(0, budget[0])]
+            if not group:
                 break
-            bar.set_postfix_str(job.label[:60])
-            finished(job, guarded_timing_job(job, rid, version, store.folder))
-            bar.update()
+            bar.set_postfix_str(group[0][0].label[:60])
+            for (job, _), record in zip(
+                group, guarded_timing_group(group, version, store.folder), strict=True
+            ):
+                finished(job, record)
+                bar.update()
     store.refresh_mirror()
     final = store.run_statuses()
     for rid in planned_ids:

@@ -37,7 +37,7 @@ from wbcbench.metrics.timing import timing_stats
 from wbcbench.qp import Problem, Solution
 from wbcbench.runs import Run, plan_run
 from wbcbench.scenarios.load import LoadedScenario
-from wbcbench.sim.replay import Recording, record_states, replay
+from wbcbench.sim.replay import Recording, Replayer, record_states, replay
 
 HLS_SCENARIO = "rqr_fig1_stack"
 
@@ -117,120 +117,250 @@ def skipped_record(job: Job, rid: str, version: str, reason: str) -> RunRecord:
     return ended_record(job.run, rid, version, "skipped", reason, job.kind, job.extra)
 
 
-def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
-    """:func:`run_timing_job` in a child process under the wall-clock guard
-    (:mod:`wbcbench.bench.guard`): a run that hangs or crashes becomes a ``failed`` row."""
+def timing_groups(jobs: list[tuple[Job, str]]) -> list[list[tuple[Job, str]]]:
+    """The timing jobs in the groups that are timed together, in plan order: the rows of one
+    scenario (same robot, overrides and window), solver, tier, mode and impl, which differ in
+    the controller or its configuration, interleave in blocks (the ``interleave`` option, in
+    ticks). A row with ``interleave: 0`` is timed alone."""
+    groups: dict[str, list[tuple[Job, str]]] = {}
+    for job, rid in jobs:
+        s = job.run.settings
+        if not int(job.options.get("interleave", 0)):
+            groups[rid] = [(job, rid)]
+            continue
+        key = json.dumps(
+            [job.run.scenario.hash, s.solver, s.tier, s.mode, job.run.impl, job.options],
+            sort_keys=True,
+            default=str,
+        )
+        groups.setdefault(key, []).append((job, rid))
+    return list(groups.values())
+
+
+def group_id(rids: list[str]) -> str:
+    """A short name of a group of timing rows timed together (from their run ids)."""
+    import hashlib
+
+    return hashlib.sha256(" ".join(sorted(rids)).encode()).hexdigest()[:12]
+
+
+def guarded_timing_group(
+    group: list[tuple[Job, str]], version: str, folder: str | Path
+) -> list[RunRecord]:
+    """:func:`run_timing_group` in a child process under the wall-clock guard
+    (:mod:`wbcbench.bench.guard`). When the group's child hangs or crashes, each of its rows is
+    timed again alone, so that only the row that hangs or crashes becomes a ``failed`` row."""
     from wbcbench.bench.guard import call_with_deadline, can_guard, timing_deadline
     from wbcbench.bench.results import printed_path
 
     if not can_guard():
-        return run_timing_job(job, rid, version, folder)
+        return run_timing_group(group, version, folder)
+    job, rid = group[0]
     loaded, opts = job.run.scenario, job.options
     ticks, start = int(opts["ticks"]), float(opts["start"])
     end = min(loaded.spec.duration, start + ticks * loaded.spec.dt)
     cached = recording_path(Path(folder), loaded, opts["recorder"], end).exists()
     recorded = 0 if cached else round(end / loaded.spec.dt)
-    seconds = opts.get("wall_limit_s") or timing_deadline(ticks, recorded)
-    args = (job, rid, version, str(folder))
-    doing = f"solver {job.run.settings.solver}"
-    printed = printed_path(folder, rid)
-    outcome = call_with_deadline(run_timing_job, args, seconds, printed, doing=doing)
+    limit = opts.get("wall_limit_s")
+    # each row's own guard, the closed-loop recording counted once
+    seconds = sum(
+        limit or timing_deadline(ticks, recorded if k == 0 else 0) for k in range(len(group))
+    )
+    solvers = sorted({j.run.settings.solver for j, _ in group})
+    doing = f"solver {', '.join(solvers)}"
+    printed = printed_path(
+        folder, rid if len(group) == 1 else f"group-{group_id([r for _, r in group])}"
+    )
+    outcome = call_with_deadline(
+        run_timing_group, (group, version, str(folder)), seconds, printed, doing=doing
+    )
     if outcome.ok:
-        record: RunRecord = outcome.value
-        return record
-    return ended_record(job.run, rid, version, "failed", outcome.message, "timing", job.extra)
+        records: list[RunRecord] = outcome.value
+        return records
+    if len(group) > 1:  # time each alone: the one that hangs or crashes fails, the rest are kept
+        return [r for member in group for r in guarded_timing_group([member], version, folder)]
+    return [ended_record(job.run, rid, version, "failed", outcome.message, "timing", job.extra)]
 
 
-def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
-    """Replay one controller × solver × mode on the scenario's recorded window; never raises."""
-    loaded = job.run.scenario
-    opts = job.options
-    row = base_row(job.run, rid, version, "timing", job.extra)
-    settings = job.run.settings
-    base = dict(scenario=loaded.name, controller=settings.controller, solver=settings.solver)
-    metrics: list[dict[str, Any]] = []
-    log = None
-    pairs: list[tuple[Problem, Solution]] = []
-    totals: list[float] = []
-    probe, limit = int(opts["probe_ticks"]), float(opts["max_step_ms"]) * 1e-3
-    check_factor = opts.get("check_factor")
+def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
+    """One timing row, alone, under the wall-clock guard."""
+    return guarded_timing_group([(job, rid)], version, folder)[0]
 
-    def after_step(i: int, out: Any) -> str:
-        report_progress(i + 1, int(opts["ticks"]))
-        totals.append(out.timings.get("total", np.nan))
-        if i + 1 == probe and float(np.nanmedian(totals)) > limit:
+
+class TimedRow:
+    """One timing row of a group: its replayer, the checks after each step, and its row."""
+
+    def __init__(self, job: Job, rid: str, version: str, folder: str | Path) -> None:
+        self.job, self.rid, self.folder = job, rid, folder
+        self.row = base_row(job.run, rid, version, "timing", job.extra)
+        self.pairs: list[tuple[Problem, Solution]] = []
+        self.totals: list[float] = []
+        self.replayer: Replayer | None = None
+        self.rec: Recording | None = None
+        self.seconds = 0.0  # wall time of its own set-up and steps [s]
+        self.ended = False  # stopped early: skipped (too slow) or an error
+
+    @property
+    def running(self) -> bool:
+        return (
+            self.replayer is not None and not self.ended and self.replayer.done < len(self.replayer)
+        )
+
+    def prepare(self) -> None:
+        """Load (or record) the states and build the controller; an error ends the row."""
+        opts = self.job.options
+        t0 = time.perf_counter()
+        try:
+            rec, recorder = recording_for(self.folder, self.job.run.scenario, opts)
+            if recorder != opts["recorder"]:  # the row says whose states it replayed
+                self.row["settings"] = json.dumps(
+                    {**json.loads(self.row["settings"]), "recorder": recorder}, sort_keys=True
+                )
+            if len(rec) <= int(opts["warmup"]):
+                raise WbcBenchError(
+                    f"the recording by {recorder} has {len(rec)} states from "
+                    f"t = {opts['start']:g} s (it ended early: the recorder fell or failed); "
+                    "set `record_with` or `start` in the timing matrix"
+                )
+            self.rec = rec
+            self.replayer = Replayer(
+                self.job.run,
+                rec,
+                on_step=self.after_step,
+                wrap_solver=lambda handle: SolverCapture(handle, self.pairs),
+            )
+        except Exception as exc:  # one broken combination must not end the sweep
+            self.end(exc)
+        self.seconds += time.perf_counter() - t0
+
+    def after_step(self, i: int, out: Any) -> str:
+        opts = self.job.options
+        probe, limit = int(opts["probe_ticks"]), float(opts["max_step_ms"]) * 1e-3
+        self.totals.append(out.timings.get("total", np.nan))
+        if i + 1 == probe and float(np.nanmedian(self.totals)) > limit:
             raise TooSlow(
-                f"median step {1e3 * float(np.nanmedian(totals)):.1f} ms over the first "
+                f"median step {1e3 * float(np.nanmedian(self.totals)):.1f} ms over the first "
                 f"{probe} ticks exceeds max_step_ms = {1e3 * limit:g} ms"
             )
-        message = check_reported(pairs, check_factor) if check_factor else ""
-        pairs.clear()
+        check_factor = opts.get("check_factor")
+        message = check_reported(self.pairs, check_factor) if check_factor else ""
+        self.pairs.clear()
         return message
 
-    wall0 = time.perf_counter()
-    watch = CpuWatch()  # the rest of the machine's CPU use from here to the replay's end
-    try:
-        rec, recorder = recording_for(folder, loaded, opts)
-        if recorder != opts["recorder"]:  # the row says whose states it replayed
-            row["settings"] = json.dumps(
-                {**json.loads(row["settings"]), "recorder": recorder}, sort_keys=True
-            )
-        if len(rec) <= int(opts["warmup"]):
-            raise WbcBenchError(
-                f"the recording by {recorder} has {len(rec)} states from "
-                f"t = {opts['start']:g} s (it ended early: the recorder fell or failed); "
-                "set `record_with` or `start` in the timing matrix"
-            )
-        load_before = round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else float("nan")
-        probe_before = speed_probe()
-        timings = replay(
-            job.run,
-            rec,
-            on_step=after_step,
-            wrap_solver=lambda handle: SolverCapture(handle, pairs),
+    def step_block(self, first: int, last: int) -> None:
+        """Step ticks ``first`` … ``last - 1`` (as many as the recording has)."""
+        assert self.replayer is not None
+        t0 = time.perf_counter()
+        try:
+            for i in range(first, min(last, len(self.replayer))):
+                self.replayer.step(i)
+        except Exception as exc:
+            self.end(exc)
+        self.seconds += time.perf_counter() - t0
+
+    def end(self, exc: BaseException) -> None:
+        """End the row early: ``skipped`` when too slow, else ``error`` with the message."""
+        self.ended = True
+        if isinstance(exc, TooSlow):
+            self.row.update(status="skipped", message=str(exc))
+        elif isinstance(exc, WbcBenchError):
+            self.row.update(status="error", message=str(exc))
+        else:
+            last = traceback.format_exception_only(type(exc), exc)[-1].strip()
+            self.row.update(status="error", message=last)
+        self.row.update(fell=False, ticks=0, failures=0)
+
+    def record(self, conditions: dict[str, Any]) -> RunRecord:
+        """The row, its statistics and its per-tick log (when kept)."""
+        self.row["wall_time_s"] = round(self.seconds, 3)
+        if self.ended or self.replayer is None or self.rec is None:
+            return RunRecord(self.row, [], None, None)
+        loaded, settings, opts = self.job.run.scenario, self.job.run.settings, self.job.options
+        # the row says what the machine was doing (see run_timing_group)
+        self.row["settings"] = json.dumps(
+            {**json.loads(self.row["settings"]), "conditions": conditions}, sort_keys=True
         )
-        # the row says what the machine was doing: the rest of the machine's CPU use over the
-        # job, the load average before and after the replay, and how fast a fixed workload ran
-        # just before and just after it
-        conditions = {
-            **machine_conditions(watch),
-            "load_1min_before": load_before,
-            "speed_probe_ms": [probe_before, speed_probe()],
-        }
-        row["settings"] = json.dumps(
-            {**json.loads(row["settings"]), "conditions": conditions}, sort_keys=True
-        )
-        # a busy machine is said once per sweep (SweepReport.busy_line), not per row
-        warmup = min(int(opts["warmup"]), max(0, len(rec) - 1))
-        for m in timing_metrics(timings.stages, warmup):
-            metrics.append(dict(run_id=rid, **base, **m))
-        ticks = len(rec)
+        timings = self.replayer.timings()
+        ticks = len(self.rec)
+        base = dict(scenario=loaded.name, controller=settings.controller, solver=settings.solver)
+        warmup = min(int(opts["warmup"]), max(0, ticks - 1))
+        metrics = [
+            dict(run_id=self.rid, **base, **m) for m in timing_metrics(timings.stages, warmup)
+        ]
         # any failed tick fails the row: its statistics stay in the metrics, the message says
         # how many ticks failed and why
-        status = "ok" if timings.failures == 0 else "failed"
         message = timings.message
         if timings.failures:
             message = f"{timings.failures} of {ticks} ticks failed; first: {message}"
-        row.update(
-            status=status,
+        self.row.update(
+            status="ok" if timings.failures == 0 else "failed",
             fell=False,
             message=message,
             ticks=ticks,
             sim_duration_s=ticks * loaded.spec.dt,
             failures=timings.failures,
         )
+        log = None
         if opts.get("keep_log", True):
             log = {f"time.{k}": v for k, v in timings.stages.items()}
-            log["t"] = rec.t[: len(next(iter(timings.stages.values()), []))]
-    except TooSlow as exc:
-        row.update(status="skipped", fell=False, message=str(exc), ticks=0, failures=0)
-    except WbcBenchError as exc:
-        row.update(status="error", fell=False, message=str(exc), ticks=0, failures=0)
-    except Exception as exc:  # one broken combination must not end the sweep
-        last = traceback.format_exception_only(type(exc), exc)[-1].strip()
-        row.update(status="error", fell=False, message=last, ticks=0, failures=0)
-    row["wall_time_s"] = round(time.perf_counter() - wall0, 3)
-    return RunRecord(row, metrics, None, log)
+            log["t"] = self.rec.t[: len(next(iter(timings.stages.values()), []))]
+        return RunRecord(self.row, metrics, None, log)
+
+
+def step_interleaved(rows: list[TimedRow], block: int, total: int = 0) -> None:
+    """Step ``rows`` in turns of ``block`` ticks until none is running; the row that goes
+    first moves on by one each round, so that none always follows the same one."""
+    first = 0
+    while running := [r for r in rows if r.running]:
+        shift = (first // block) % len(running)
+        for r in running[shift:] + running[:shift]:
+            r.step_block(first, first + block)
+        first += block
+        if total:
+            report_progress(min(first, total // max(1, len(rows))) * len(rows), total)
+
+
+def run_timing_group(
+    group: list[tuple[Job, str]], version: str, folder: str | Path
+) -> list[RunRecord]:
+    """Replay the group's controller × solver × mode rows on the scenario's recorded window,
+    interleaved: each steps ``interleave`` ticks in turn (the first to go rotating from block to
+    block) until all are done, so that a change in the machine's speed (another process, the
+    clock, the host of a virtual machine) falls on every row of the group alike and their
+    ratios hold. A row alone steps straight through. Never raises."""
+    watch = CpuWatch()  # the rest of the machine's CPU use from here to the replays' end
+    rows = [TimedRow(job, rid, version, folder) for job, rid in group]
+    for r in rows:
+        r.prepare()
+    block = int(group[0][0].options.get("interleave", 0)) or max(
+        (len(r.replayer) for r in rows if r.replayer is not None), default=1
+    )
+    total = sum(len(r.replayer) for r in rows if r.replayer is not None)
+    load_before = round(os.getloadavg()[0], 2) if hasattr(os, "getloadavg") else float("nan")
+    probe_before = speed_probe()
+    step_interleaved(rows, block, total)
+    # the rows say what the machine was doing: the rest of the machine's CPU use over the
+    # group, the load average before and after the replays, how fast a fixed workload ran just
+    # before and just after them, and which rows were timed together
+    conditions: dict[str, Any] = {
+        **machine_conditions(watch),
+        "load_1min_before": load_before,
+        "speed_probe_ms": [probe_before, speed_probe()],
+    }
+    if len(rows) > 1:
+        conditions["interleaved"] = {
+            "group": group_id([rid for _, rid in group]),
+            "rows": len(rows),
+            "block_ticks": block,
+        }
+    # a busy machine is said once per sweep (SweepReport.busy_line), not per row
+    return [r.record(conditions) for r in rows]
+
+
+def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
+    """Replay one controller × solver × mode alone on the scenario's recorded window; never
+    raises."""
+    return run_timing_group([(job, rid)], version, folder)[0]
 
 
 # -- QP dumps for the solver comparison

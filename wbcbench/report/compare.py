@@ -77,7 +77,7 @@ def _facets(settings: object) -> dict[str, str]:
     }
     ticks = {
         k: info.pop(k)
-        for k in ("ticks", "warmup", "start", "probe_ticks", "repeats", "sizes")
+        for k in ("ticks", "warmup", "start", "probe_ticks", "interleave", "repeats", "sizes")
         if k in info
     }
     recorder = {k: info.pop(k) for k in ("recorder", "fallback_recorders") if k in info}

@@ -13,6 +13,14 @@ A run that kept no per-tick times falls back on the interval its row stores
 (``t_<stage>_median_ci_lo_us`` / ``_hi_us``, a moving-block bootstrap over its ticks): a ratio's
 interval is then the quotient of the two intervals' ends, [lo_a / hi_b, hi_a / lo_b], wider than
 the bootstrap's.
+
+The ticks cannot see the machine change speed between two runs (on a virtual machine the same
+fixed workload may run half as fast a minute later). Each timing row records a speed probe just
+before and just after its replay (``conditions.speed_probe_ms``). The interval of a median, and
+of a ratio of runs timed apart, is widened by the spread of their probes, ``s = slowest /
+fastest − 1``: [lo / (1 + s), hi · (1 + s)]. The rows of a ratio that were timed together,
+interleaved in blocks of ticks (``conditions.interleaved``, :mod:`wbcbench.bench.timing`), met the
+same changes of speed: their ratio's interval is not widened.
 """
 
 from __future__ import annotations
@@ -43,6 +51,8 @@ class Estimate:
     lo: float
     hi: float
     source: str  # "ticks" (bootstrap over the stored ticks) or "stored intervals"
+    #: the relative spread of the machine's speed the interval was widened by (0: none)
+    widened: float = 0.0
 
     @property
     def finite(self) -> bool:
@@ -51,6 +61,23 @@ class Estimate:
     def straddles(self, threshold: float) -> bool:
         """Whether the interval contains ``threshold`` (the data cannot tell which side)."""
         return self.finite and self.lo <= threshold <= self.hi
+
+    def widen(self, spread: float) -> Estimate:
+        """The interval widened by a relative spread of the machine's speed ``spread``."""
+        if not (self.finite and spread > 0):
+            return self
+        k = 1.0 + spread
+        return Estimate(self.value, self.lo / k, self.hi * k, self.source, spread)
+
+    @property
+    def note(self) -> str:
+        """How much the machine's speed widened the interval, in a clause, or ""."""
+        if self.widened < 0.005:
+            return ""
+        return (
+            f"widened by ±{100 * self.widened:.0f} %, the spread of the machine's speed around "
+            "the runs"
+        )
 
     def text(self, unit: str = "×", digits: int = 3) -> str:
         f = f"{{:.{digits}g}}"
@@ -117,9 +144,11 @@ def median(res: Results, row: pd.Series, stage: str = "total", level: str = "") 
     x = tick_us(res, row, stage, level)
     if x.size >= 2:
         lo, hi = _bootstrap([x], lambda m: m)
-        return Estimate(float(np.median(x)), lo, hi, "ticks")
-    stored = _stored(res, row, stage, level)
-    return Estimate(stored.value, stored.lo, stored.hi, "stored intervals")
+        est = Estimate(float(np.median(x)), lo, hi, "ticks")
+    else:
+        stored = _stored(res, row, stage, level)
+        est = Estimate(stored.value, stored.lo, stored.hi, "stored intervals")
+    return est.widen(speed_spread([row]))
 
 
 def ratio(
@@ -129,17 +158,41 @@ def ratio(
     x, y = tick_us(res, a, stage, level), tick_us(res, b, stage, level)
     if x.size >= 2 and y.size >= 2 and np.median(y) > 0:
         lo, hi = _bootstrap([x, y], lambda p, q: p / np.where(q > 0, q, np.nan))
-        return Estimate(float(np.median(x) / np.median(y)), lo, hi, "ticks")
-    sa, sb = _stored(res, a, stage, level), _stored(res, b, stage, level)
-    if not (sa.finite and sb.finite) or min(sb.value, sb.lo) <= 0:
-        return NAN
-    return Estimate(sa.value / sb.value, sa.lo / sb.hi, sa.hi / sb.lo, "stored intervals")
+        est = Estimate(float(np.median(x) / np.median(y)), lo, hi, "ticks")
+    else:
+        sa, sb = _stored(res, a, stage, level), _stored(res, b, stage, level)
+        if not (sa.finite and sb.finite) or min(sb.value, sb.lo) <= 0:
+            return NAN
+        est = Estimate(sa.value / sb.value, sa.lo / sb.hi, sa.hi / sb.lo, "stored intervals")
+    return est if timed_together([a, b]) else est.widen(speed_spread([a, b]))
+
+
+def timed_together(rows: list[pd.Series]) -> bool:
+    """Whether all of ``rows`` were timed in one interleaved group (the same
+    ``conditions.interleaved.group``)."""
+    groups = {
+        str(((_settings(row).get("conditions") or {}).get("interleaved") or {}).get("group", ""))
+        for row in rows
+    }
+    return len(rows) > 1 and len(groups) == 1 and "" not in groups
+
+
+def speed_spread(rows: pd.DataFrame | list[pd.Series]) -> float:
+    """How far the speed probes taken just before and after each of ``rows``
+    (``conditions.speed_probe_ms``) spread: slowest / fastest − 1 (0 with fewer than two)."""
+    frame = pd.DataFrame(rows) if isinstance(rows, list) else rows
+    probes = [
+        float(p)
+        for _, row in frame.iterrows()
+        for p in (_settings(row).get("conditions") or {}).get("speed_probe_ms") or []
+        if np.isfinite(float(p)) and float(p) > 0
+    ]
+    return max(probes) / min(probes) - 1.0 if len(probes) >= 2 else 0.0
 
 
 def busy(rows: pd.DataFrame | list[pd.Series]) -> str:
     """Why the timings of ``rows`` cannot be compared, in a sentence, else "": a run timed on a
-    busy machine (its recorded ``conditions.busy``; the busiest named), or the machine's speed
-    moving between the runs (:func:`speed_shift`)."""
+    busy machine (its recorded ``conditions.busy``; the busiest named)."""
     frame = pd.DataFrame(rows) if isinstance(rows, list) else rows
     worst: dict[str, Any] | None = None
     count = 0
@@ -150,34 +203,8 @@ def busy(rows: pd.DataFrame | list[pd.Series]) -> str:
             if worst is None or other_work_per_core(conditions) > other_work_per_core(worst):
                 worst = conditions
     if worst is None:
-        return speed_shift(frame)
+        return ""
     return (
         f"{count} of {len(frame)} runs behind it were timed on a busy machine (load "
         f"{worst.get('load_1min', float('nan')):g}, {other_work(worst)})"
-    )
-
-
-#: the largest spread of the speed probes around the runs behind a verdict (slowest / fastest
-#: − 1) at which their times still compare
-SPEED_SHIFT = 0.15
-
-
-def speed_shift(rows: pd.DataFrame | list[pd.Series]) -> str:
-    """A sentence when the speed probes taken just before and after each of ``rows``
-    (``conditions.speed_probe_ms``) spread by more than :data:`SPEED_SHIFT`: the machine ran
-    the same fixed workload that much slower at one time than at another, so the runs' times
-    are not comparable; else ""."""
-    frame = pd.DataFrame(rows) if isinstance(rows, list) else rows
-    probes = [
-        float(p)
-        for _, row in frame.iterrows()
-        for p in (_settings(row).get("conditions") or {}).get("speed_probe_ms") or []
-        if np.isfinite(float(p)) and float(p) > 0
-    ]
-    if len(probes) < 2 or max(probes) / min(probes) - 1.0 <= SPEED_SHIFT:
-        return ""
-    return (
-        f"the machine's speed moved while the {len(frame)} runs behind it were timed: a fixed "
-        f"workload took {min(probes):.3g}–{max(probes):.3g} ms around them "
-        f"(+{100 * (max(probes) / min(probes) - 1):.0f} %, above {100 * SPEED_SHIFT:.0f} %)"
     )

@@ -14,7 +14,8 @@ bootstrap intervals (:mod:`wbcbench.report.evidence`). The rules:
   most twice it (faster is reproduced: another CPU, and simulation), ``partly`` when slower;
 * a speed verdict is ``inconclusive`` when its interval contains a threshold of its rule (the
   data cannot tell which side it lies), or when a run behind it was timed on a busy machine
-  (the load its row records), with the reason;
+  (the load its row records), with the reason; the interval is widened by the spread of the
+  machine's speed around runs that were not timed together (:mod:`wbcbench.report.evidence`);
 * a claim whose speed depends on the solver gets one row per solver timed, the paper's first
   and named (``qpoases (paper's)``);
 * an **accuracy** claim is ``reproduced`` when our errors are at or below the paper's;
@@ -122,12 +123,16 @@ def _ended(rows: list[pd.Series]) -> str:
 
 
 def _source(*estimates: Estimate) -> str:
-    sources = {e.source for e in estimates if e.finite}
-    return (
-        " Intervals from the runs' stored intervals (no per-tick times kept)."
-        if "stored intervals" in sources
-        else ""
-    )
+    """Where the intervals come from, and how much the machine's speed widened them."""
+    finite = [e for e in estimates if e.finite]
+    out = ""
+    if any(e.source == "stored intervals" for e in finite):
+        out += " Intervals from the runs' stored intervals (no per-tick times kept)."
+    widest = max(finite, key=lambda e: e.widened, default=None)
+    if widest is not None and widest.note:
+        which = "Its interval is" if len(finite) == 1 else "The widest interval is"
+        out += f" {which} {widest.note}."
+    return out
 
 
 @dataclass
@@ -674,7 +679,9 @@ def markdown(frame: pd.DataFrame) -> str:
         "medians of the replayed ticks with 95 % bootstrap intervals: a speed-up is reproduced "
         "at half the paper's ratio or more, partly when it is a smaller gain; a verdict whose "
         "interval contains its threshold, or whose runs were timed on a busy machine, is "
-        "inconclusive; a claim whose speed depends on the solver has one row per solver, the "
+        "inconclusive; the rows a ratio compares are timed together, interleaved, and an "
+        "interval over runs timed apart is widened by the spread of the machine's speed "
+        "around them; a claim whose speed depends on the solver has one row per solver, the "
         "paper's first. An accuracy claim is reproduced when our errors are at or below the "
         "paper's. The tables below hold the numbers.",
         "",

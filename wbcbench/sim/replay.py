@@ -83,6 +83,67 @@ class ReplayTimings:
         return float(np.quantile(x, q) * 1e6) if x.size else float("nan")
 
 
+class Replayer:
+    """A fresh controller of one run stepping through a recording, one tick at a time.
+
+    :func:`replay` steps it from the first recorded state to the last; the timing sweep steps
+    several replayers on the same recording in interleaved blocks of ticks
+    (:mod:`wbcbench.bench.timing`), so that they share the machine's moments.
+
+    ``keep_problems`` makes each output carry its QPs; ``on_step(i, out)`` runs after each
+    (timed) step and may return a failure message that marks the tick failed (e.g. an
+    independent validity check); ``wrap_solver`` wraps every solver handle the controller makes.
+    """
+
+    def __init__(
+        self,
+        run: Run,
+        recording: Recording,
+        keep_problems: bool = False,
+        on_step: Callable[[int, ControlOutput], str] | None = None,
+        wrap_solver: Callable[[Any], Any] | None = None,
+    ) -> None:
+        self.recording = recording
+        self.on_step = on_step
+        self.controller = run.make_controller(wrap_solver, keep_problems=keep_problems)
+        self.robot = self.controller.ctx.robot  # with the scenario's model error, if any
+        self.data = self.robot.pin_model.createData()
+        self.columns: dict[str, list[float]] = {}
+        self.failures = 0
+        self.message = ""
+        self.done = 0  # ticks stepped
+
+    def __len__(self) -> int:
+        return len(self.recording)
+
+    def step(self, i: int) -> None:
+        """Step the controller on recorded state ``i`` (the next one: ticks go in order)."""
+        assert i == self.done, f"tick {i} stepped after {self.done}"
+        rec = self.recording
+        state = RobotState(self.robot, rec.q[i], rec.v[i], self.data)
+        if i == 0:
+            self.controller.start(state)
+        out = self.controller.step(state, float(rec.t[i]))
+        self.done = i + 1
+        problem = (out.message or "QP failed") if not out.ok else ""
+        if self.on_step is not None:
+            problem = self.on_step(i, out) or problem
+        if problem:
+            self.failures += 1
+            self.message = self.message or f"tick {i}: {problem}"
+        for stage, value in out.timings.items():
+            # a stage first reported at tick i (e.g. a level that appears later) gets NaN before
+            self.columns.setdefault(stage, [float("nan")] * i).append(value)
+        for values in self.columns.values():
+            if len(values) == i:  # a stage this tick did not report
+                values.append(float("nan"))
+
+    def timings(self) -> ReplayTimings:
+        """The stage timings of the ticks stepped so far."""
+        columns = {k: np.asarray(v) for k, v in self.columns.items()}
+        return ReplayTimings(columns, self.failures, self.message)
+
+
 def replay(
     run: Run,
     recording: Recording,
@@ -91,33 +152,8 @@ def replay(
     wrap_solver: Callable[[Any], Any] | None = None,
 ) -> ReplayTimings:
     """Step a fresh controller of ``run`` through every recorded state; collect its stage
-    timings.
-
-    ``keep_problems`` makes each output carry its QPs; ``on_step(i, out)`` runs after each
-    (timed) step and may return a failure message that marks the tick failed (e.g. an
-    independent validity check); ``wrap_solver`` wraps every solver handle the controller makes.
-    """
-    controller = run.make_controller(wrap_solver, keep_problems=keep_problems)
-    robot = controller.ctx.robot  # with the scenario's model error, if any
-    data = robot.pin_model.createData()
-    columns: dict[str, list[float]] = {}
-    failures = 0
-    message = ""
+    timings (the arguments are :class:`Replayer`'s)."""
+    replayer = Replayer(run, recording, keep_problems, on_step, wrap_solver)
     for i in range(len(recording)):
-        state = RobotState(robot, recording.q[i], recording.v[i], data)
-        if i == 0:
-            controller.start(state)
-        out = controller.step(state, float(recording.t[i]))
-        problem = (out.message or "QP failed") if not out.ok else ""
-        if on_step is not None:
-            problem = on_step(i, out) or problem
-        if problem:
-            failures += 1
-            message = message or f"tick {i}: {problem}"
-        for stage, value in out.timings.items():
-            # a stage first reported at tick i (e.g. a level that appears later) gets NaN before
-            columns.setdefault(stage, [float("nan")] * i).append(value)
-        for values in columns.values():
-            if len(values) == i:  # a stage this tick did not report
-                values.append(float("nan"))
-    return ReplayTimings({k: np.asarray(v) for k, v in columns.items()}, failures, message)
+        replayer.step(i)
+    return replayer.timings()

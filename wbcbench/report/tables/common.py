@@ -126,7 +126,7 @@ def _pick_timing(
     if runs.empty:
         return runs
     for column, value in (("scenario_hash", ""), ("robot", ""), ("tier", "default")):
-        filled = runs[column].fillna(value) if column in runs.columns else value
+        filled = runs[column].astype(object).fillna(value) if column in runs.columns else value
         runs = runs.assign(**{column: filled})
     runs = runs.assign(_config=[_config(r) for _, r in runs.iterrows()])
     key = ["scenario", "scenario_hash", "robot", "controller", "_config"]
