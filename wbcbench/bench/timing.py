@@ -119,18 +119,20 @@ def skipped_record(job: Job, rid: str, version: str, reason: str) -> RunRecord:
 
 def timing_groups(jobs: list[tuple[Job, str]]) -> list[list[tuple[Job, str]]]:
     """The timing jobs in the groups that are timed together, in plan order: the rows of one
-    scenario (same robot, overrides and window), solver, tier, mode and impl, which differ in
-    the controller or its configuration, interleave in blocks (the ``interleave`` option, in
-    ticks). A row with ``interleave: 0`` is timed alone."""
+    scenario (same robot and overrides), window (start, ticks, warm-up, recorder), solver,
+    tier, mode and impl, which differ in the controller or its configuration (or in a budget
+    such as ``max_step_ms``), interleave in blocks (the ``interleave`` option, in ticks). A row
+    with ``interleave: 0`` is timed alone."""
     groups: dict[str, list[tuple[Job, str]]] = {}
     for job, rid in jobs:
         s = job.run.settings
-        if not int(job.options.get("interleave", 0)):
+        block = int(job.options.get("interleave", 0))
+        if not block:
             groups[rid] = [(job, rid)]
             continue
+        window = [job.options.get(k) for k in ("start", "ticks", "warmup", "recorder")]
         key = json.dumps(
-            [job.run.scenario.hash, s.solver, s.tier, s.mode, job.run.impl, job.options],
-            sort_keys=True,
+            [job.run.scenario.hash, s.solver, s.tier, s.mode, job.run.impl, window, block],
             default=str,
         )
         groups.setdefault(key, []).append((job, rid))
