@@ -8,9 +8,10 @@ import json
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from wbcbench.report.walking import walk_figure
+from wbcbench.report.walking import walk_figure, walk_phase_figure
 from wbcbench.tasks.walking import (
     Footstep,
     WalkPlan,
@@ -166,3 +167,38 @@ def test_the_top_view_draws_every_footprint() -> None:
     assert len(ax.patches) == len(plan.footsteps)
     labels = ax.get_legend_handles_labels()[1]
     assert {"ZMP (plan)", "DCM (plan)", "CoM (plan)", "CoM (run)"} <= set(labels)
+
+
+@pytest.mark.parametrize(("slowest", "scale"), [(900.0, "linear"), (90_000.0, "log")])
+def test_the_phase_figure_draws_each_runs_medians_p99s_and_the_deadline(
+    slowest: float, scale: str
+) -> None:
+    medians = {"a": (700.0, 650.0, 800.0), "b": (slowest, 600.0, 750.0)}
+    phases = pd.DataFrame(
+        [
+            {
+                "scenario": "tocabi_walk",
+                "controller": c,
+                "solver": "daqp",
+                "impl": "python",
+                "phase": phase,
+                "median [µs]": m,
+                "p99 [µs]": 2 * m,
+                "deadline [µs]": 1000.0,
+            }
+            for c, ms in medians.items()
+            for phase, m in zip(("double", "single", "transition"), ms, strict=True)
+        ]
+    )
+    ax = walk_phase_figure(phases).axes[0]
+    # one bar per run and phase, grouped by phase, each as high as its median
+    heights = [bar.get_height() for bar in ax.patches]
+    assert heights == [700.0, slowest, 650.0, 600.0, 800.0, 750.0]
+    assert [label.get_text() for label in ax.get_xticklabels()] == [
+        "a × daqp\n(python, tocabi_walk)",
+        "b × daqp\n(python, tocabi_walk)",
+    ]
+    p99 = [list(m.get_ydata()) for m in ax.get_lines() if m.get_marker() == "v"]
+    assert [y for y in p99 if y] == [[1400.0, 2 * slowest], [1300.0, 1200.0], [1600.0, 1500.0]]
+    assert any(list(line.get_ydata()) == [1000.0, 1000.0] for line in ax.get_lines())
+    assert ax.get_yscale() == scale

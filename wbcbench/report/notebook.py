@@ -16,13 +16,22 @@ import pandas as pd
 from wbcbench.report.load import Results, load_results
 
 __all__ = [
+    "WALK_TARGET_MM",
     "notebook_results",
     "paper_verdicts",
     "robustness_conclusion",
     "solver_conclusion",
     "verdict_conclusion",
     "verdict_markdown",
+    "walk_coverage",
+    "walk_phase_times",
+    "walk_verdicts",
+    "walking_conclusion",
 ]
+
+#: the largest CoM and landing errors [mm] a walk run may show to count as walking on target
+#: (ours: no paper states one for these walks)
+WALK_TARGET_MM = 5.0
 
 
 def notebook_results() -> Results:
@@ -162,4 +171,224 @@ def robustness_conclusion(push: pd.DataFrame, degradation: pd.DataFrame) -> str:
                 )
             else:
                 lines.append(f"{where}: `{r['falls first']}` falls first, at {r['at']}: {r[WHY]}.")
+    return "\n\n".join(lines)
+
+
+def _ticks(n: float, phase: str = "") -> str:
+    return f"{n:.0f} {phase + ' ' if phase else ''}tick{'' if n == 1 else 's'}"
+
+
+def walk_verdicts(res: Results) -> pd.DataFrame:
+    """One row per run of the walking table (:func:`wbcbench.report.tables.walking.walk_runs`):
+    the steps it completed of those planned, whether it fell, the largest CoM and landing
+    errors [mm], and its verdict against :data:`WALK_TARGET_MM`: ``walks`` (every planned step,
+    no fall, both errors within the target), ``off target`` (every step, no fall, an error
+    beyond it) or ``ends early`` (it fell, failed or was cut short), with why."""
+    from wbcbench.report.tables.common import _metric, _run_status, run_spec
+    from wbcbench.report.tables.walking import walk_runs
+
+    rows = []
+    for _, run in walk_runs(res).iterrows():
+        rid = run["run_id"]
+        spec = run_spec(res, run)
+        done = _metric(res, rid, "steps_completed")
+        planned = _metric(res, rid, "steps_planned")
+        com = 1e3 * _metric(res, rid, "err_max", spec.walk.com_task if spec else "com")
+        landing = 1e3 * _metric(res, rid, "landing_error_max")
+        if run["status"] != "ok":
+            verdict, why = "ends early", _run_status(run)
+        elif not done >= planned:
+            sim = float(run["sim_duration_s"])
+            verdict, why = "ends early", f"cut short at {sim:.3g} s, before its last step"
+        else:
+            beyond = [
+                f"{name} error up to {err:.3g} mm"
+                for name, err in (("CoM", com), ("landing", landing))
+                if not err <= WALK_TARGET_MM
+            ]
+            verdict = "off target" if beyond else "walks"
+            why = (
+                ", ".join(beyond) + f", beyond {WALK_TARGET_MM:g} mm"
+                if beyond
+                else f"every step, both errors within {WALK_TARGET_MM:g} mm"
+            )
+        rows.append(
+            {
+                "robot": run["robot"],
+                "scenario": run["scenario"],
+                "controller": run["controller"],
+                "solver": run["solver"],
+                "impl": run["impl"],
+                "steps": f"{done:.0f}/{planned:.0f}",
+                "fell": run["status"] == "fell",
+                "CoM err max [mm]": com,
+                "landing err max [mm]": landing,
+                "verdict": verdict,
+                "why": why,
+            }
+        )
+    columns = ["robot", "scenario", "controller", "solver", "impl", "steps", "fell"]
+    columns += ["CoM err max [mm]", "landing err max [mm]", "verdict", "why"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def walk_phase_times(res: Results) -> pd.DataFrame:
+    """The whole tick's median and p99 [µs] per walk phase (``double``, ``single``,
+    ``transition``: the ticks whose active contact set differs from the previous tick's) of
+    each run of the walking table, with the number of ticks and the control period [µs], the
+    deadline a tick must meet."""
+    from wbcbench.report.tables.common import _metric, run_spec
+    from wbcbench.report.tables.walking import PHASES, walk_runs
+
+    rows = []
+    for _, run in walk_runs(res).iterrows():
+        spec = run_spec(res, run)
+        for phase in PHASES:
+            rows.append(
+                {
+                    "robot": run["robot"],
+                    "scenario": run["scenario"],
+                    "controller": run["controller"],
+                    "solver": run["solver"],
+                    "impl": run["impl"],
+                    "phase": phase,
+                    "ticks": _metric(res, run["run_id"], f"ticks_{phase}"),
+                    "median [µs]": _metric(res, run["run_id"], f"t_total_median_us_{phase}"),
+                    "p99 [µs]": _metric(res, run["run_id"], f"t_total_p99_us_{phase}"),
+                    "deadline [µs]": 1e6 / spec.control_rate if spec else float("nan"),
+                }
+            )
+    columns = ["robot", "scenario", "controller", "solver", "impl", "phase", "ticks"]
+    columns += ["median [µs]", "p99 [µs]", "deadline [µs]"]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def walk_coverage(res: Results) -> pd.DataFrame:
+    """Every walk scenario of the ``scenarios/`` folder and of the results: its robot, the
+    steps its file plans, how many closed-loop runs of it the results hold, how many of those
+    stood still (ended ok before their first touchdown, as the sweeps' 0.5 s health checks
+    do) and how many the walking table judges (one per controller × solver × impl)."""
+    from wbcbench.report.tables.common import _metric, scenario_spec
+    from wbcbench.report.tables.walking import walk_runs
+    from wbcbench.scenarios.load import available_scenarios
+
+    tracking = res.of_kind("tracking")
+    in_results = [str(s) for s in tracking["scenario"].unique()] if not tracking.empty else []
+    judged = walk_runs(res)
+    rows = []
+    for name in sorted(set(available_scenarios()) | set(in_results)):
+        spec = scenario_spec(res, name)
+        if spec is None or spec.walk is None:
+            continue
+        walk = spec.walk
+        runs = tracking[tracking["scenario"] == name] if in_results else tracking.iloc[0:0]
+        rows.append(
+            {
+                "scenario": name,
+                "robot": spec.robot,
+                "steps planned": walk.steps if walk.steps is not None else len(walk.footsteps),
+                "runs": len(runs),
+                "stood still": sum(
+                    1
+                    for _, r in runs.iterrows()
+                    if r["status"] == "ok" and not _metric(res, r["run_id"], "steps_completed") > 0
+                ),
+                "judged": int((judged["scenario"] == name).sum()) if not judged.empty else 0,
+            }
+        )
+    return pd.DataFrame(
+        rows, columns=["scenario", "robot", "steps planned", "runs", "stood still", "judged"]
+    )
+
+
+def walking_conclusion(verdicts: pd.DataFrame, phases: pd.DataFrame, coverage: pd.DataFrame) -> str:
+    """A short conclusion from :func:`walk_verdicts`, :func:`walk_phase_times` and
+    :func:`walk_coverage`: which runs walk every step on target and their largest errors,
+    which end early and why, the slowest phase at the median and the phases whose p99 misses
+    the deadline, and which walk scenarios these results do not judge."""
+
+    def who(r: pd.Series) -> str:
+        return f"`{r['controller']}` × {r['solver']} ({r['impl']}) on {r['scenario']}"
+
+    lines = []
+    if verdicts.empty:
+        lines.append("No walk run in these results took a step.")
+    else:
+        walks = verdicts[verdicts["verdict"] == "walks"]
+        n, k = len(verdicts), len(walks)
+        text = f"Of {n} walk run{'s' if n > 1 else ''}, {k} walk{'s' if k == 1 else ''} "
+        text += "every planned step"
+        if not walks.empty:
+            text += (
+                f" within the {WALK_TARGET_MM:g} mm targets: "
+                + "; ".join(f"{who(r)}, {r['steps']} steps" for _, r in walks.iterrows())
+                + f". {'Its' if len(walks) == 1 else 'Their'} CoM error is at most "
+                f"{walks['CoM err max [mm]'].max():.3g} mm and "
+                f"{'its' if len(walks) == 1 else 'their'} landing error at most "
+                f"{walks['landing err max [mm]'].max():.3g} mm"
+            )
+        lines.append(text + ".")
+        for _, r in verdicts[verdicts["verdict"] != "walks"].iterrows():
+            lines.append(f"{who(r)} {r['verdict']}, {r['steps']} steps: {r['why']}.")
+    timed = phases.dropna(subset=["median [µs]"])
+    keys = ["scenario", "controller", "solver", "impl"]
+    slowest_phase = timed.loc[timed.groupby(keys, sort=False)["median [µs]"].idxmax(), "phase"]
+    if len(slowest_phase) > 1:
+        counts = slowest_phase.value_counts()
+        lines.append(
+            "Slowest phase at the median: "
+            + ", ".join(
+                f"{phase} ticks in {k} of {len(slowest_phase)} runs" for phase, k in counts.items()
+            )
+            + "."
+        )
+    for _, run in timed.groupby(keys, sort=False):
+        r = run.iloc[0]
+        slowest = run.iloc[int(run["median [µs]"].to_numpy().argmax())]
+        others = run[run["phase"] != slowest["phase"]]
+        text = (
+            f"{who(r)}: the {slowest['phase']} ticks are the slowest at the median "
+            f"({slowest['median [µs]']:.0f} µs over {_ticks(slowest['ticks'])}, against "
+            + " and ".join(f"{o['median [µs]']:.0f} µs {o['phase']}" for _, o in others.iterrows())
+            + ")"
+        )
+        late = run[run["p99 [µs]"] > run["deadline [µs]"]]
+        deadline = f"{r['deadline [µs]'] / 1e3:g} ms"
+        if late.empty:
+            text += f"; every phase's p99 is within the {deadline} deadline"
+        else:
+            text += f"; the p99 misses the {deadline} deadline in " + ", ".join(
+                f"{o['phase']} ({o['p99 [µs]']:.0f} µs)" for _, o in late.iterrows()
+            )
+        few = run[run["ticks"] < 100]
+        if not few.empty:
+            text += (
+                "; the p99 of "
+                + " and ".join(f"{_ticks(o['ticks'], o['phase'])}" for _, o in few.iterrows())
+                + " is close to their largest"
+            )
+        lines.append(text + ".")
+    never = coverage[coverage["runs"] == 0]["scenario"].tolist()
+    if never:
+        lines.append("Not run in these results: " + ", ".join(f"`{s}`" for s in never) + ".")
+    still = coverage[coverage["stood still"] > 0]
+    if not still.empty:
+        lines.append(
+            "Not judged, having ended before their first touchdown: "
+            + ", ".join(
+                f"{r['stood still']} run{'s' if r['stood still'] > 1 else ''} of `{r['scenario']}`"
+                for _, r in still.iterrows()
+            )
+            + "."
+        )
+    if not verdicts.empty:
+        asked = verdicts.assign(asked=verdicts["steps"].str.split("/").str[1].astype(float))
+        asked = asked.merge(coverage[["scenario", "steps planned"]], on="scenario")
+        cut = asked[asked["asked"] < asked["steps planned"]]
+        for (scenario, count, of), group in cut.groupby(["scenario", "asked", "steps planned"]):
+            runs = f"The {len(group)} runs" if len(group) > 1 else "The run"
+            lines.append(
+                f"{runs} of `{scenario}` judged here {'were' if len(group) > 1 else 'was'} "
+                f"asked for {count:.0f} of the {of} steps its scenario file plans."
+            )
     return "\n\n".join(lines)

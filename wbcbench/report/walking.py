@@ -1,4 +1,5 @@
-"""The top view of a walk: footprints, and the ZMP, DCM and CoM paths, planned and measured."""
+"""The top view of a walk: footprints, and the ZMP, DCM and CoM paths, planned and measured;
+and the time per tick of each walk phase against the control period."""
 
 from __future__ import annotations
 
@@ -12,9 +13,10 @@ from matplotlib.patches import Polygon
 
 from wbcbench.tasks.walking import WalkPlan
 
-__all__ = ["measured_paths", "walk_figure"]
+__all__ = ["measured_paths", "walk_figure", "walk_phase_figure"]
 
 FOOT_COLOURS = ("tab:blue", "tab:red")
+PHASE_COLOURS = {"double": "tab:blue", "single": "tab:orange", "transition": "tab:red"}
 
 
 def _footprint(
@@ -137,5 +139,56 @@ def walk_figure(
     ax.set_title(
         title or f"{steps} steps, {plan.duration:.1f} s, CoM height {plan.com_height:.3f} m"
     )
+    fig.tight_layout()
+    return fig
+
+
+def walk_phase_figure(phases: pd.DataFrame) -> Figure:
+    """The whole tick per walk phase, one group of bars per run: the median as a bar, the p99
+    as a triangle, the control period as a dashed line; on a log scale when the times span
+    more than a factor 20.
+
+    Args:
+        phases: one row per run × phase, with ``scenario``, ``controller``, ``solver``,
+            ``impl``, ``phase``, ``median [µs]``, ``p99 [µs]`` and ``deadline [µs]``
+            (:func:`wbcbench.report.notebook.walk_phase_times`).
+    """
+    keys = ["scenario", "controller", "solver", "impl"]
+    runs = list(phases.groupby(keys, sort=False))
+    fig = Figure(figsize=(max(5.0, 1.6 * len(runs) + 2.5), 4.0))
+    ax: Axes = fig.add_subplot()
+    names = list(dict.fromkeys(phases["phase"]))
+    width = 0.8 / max(len(names), 1)
+    for k, phase in enumerate(names):
+        rows = [run[run["phase"] == phase] for _, run in runs]
+        median = [float(r["median [µs]"].iloc[0]) if len(r) else np.nan for r in rows]
+        p99 = [float(r["p99 [µs]"].iloc[0]) if len(r) else np.nan for r in rows]
+        x = np.arange(len(runs)) + (k - (len(names) - 1) / 2) * width
+        colour = PHASE_COLOURS.get(phase, "tab:gray")
+        ax.bar(x, median, width, color=colour, alpha=0.8, label=f"{phase} (median)")
+        ax.plot(x, p99, "v", color=colour, markeredgecolor="black", ms=6)
+    ax.plot([], [], "v", color="white", markeredgecolor="black", label="p99")
+    for deadline in phases["deadline [µs]"].dropna().unique():
+        ax.axhline(deadline, color="black", ls="--", lw=1.0)
+        ax.annotate(
+            f"deadline {deadline / 1e3:g} ms",
+            (1.0, deadline),
+            xycoords=("axes fraction", "data"),
+            ha="right",
+            va="bottom",
+            fontsize=8,
+        )
+    ax.set_xticks(np.arange(len(runs)))
+    ax.set_xticklabels([f"{c} × {s}\n({i}, {sc})" for (sc, c, s, i), _ in runs], fontsize=8)
+    values = phases[["median [µs]", "p99 [µs]"]].to_numpy(dtype=float)
+    values = values[np.isfinite(values) & (values > 0)]
+    if values.size and values.max() > 20.0 * values.min():  # times of different scales
+        ax.set_yscale("log")
+    else:
+        ax.set_ylim(bottom=0.0)
+    ax.set_ylabel("whole tick [µs]")
+    ax.set_title("Time per tick by walk phase", fontsize=10)
+    ax.grid(alpha=0.3, axis="y", which="both")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     return fig

@@ -71,35 +71,57 @@ def _row(res: Results, run: pd.Series, com_task: str) -> dict[str, Any]:
     return row
 
 
-def walking(res: Results) -> PaperTable:
-    """Steps, falls, CoM / DCM / landing errors, CoP margin, slip and time per phase of every
-    walk run, grouped by robot."""
-    t = PaperTable("walking", "Walking: each controller × solver on the walk scenarios", "", None)
+def _walk_scenarios(res: Results) -> dict[str, Any]:
+    """The scenarios of these results' tracking runs that have a ``walk:`` block, with their
+    specs."""
     tracking = res.of_kind("tracking")
-    walks = {
+    return {
         str(s): spec
         for s in (tracking["scenario"].unique() if not tracking.empty else [])
         if (spec := _walk_spec(res, str(s))) is not None
     }
+
+
+def _walk_candidates(res: Results, walks: dict[str, Any]) -> pd.DataFrame:
+    tracking = res.of_kind("tracking")
     runs = tracking[tracking["scenario"].isin(list(walks))] if walks else tracking.iloc[0:0]
-    runs = runs[runs["status"].isin(["ok", "failed", "fell"])] if not runs.empty else runs
+    return runs[runs["status"].isin(["ok", "failed", "fell"])] if not runs.empty else runs
+
+
+def walk_runs(res: Results) -> pd.DataFrame:
+    """The run each row of the walking table shows: per walk scenario × controller × solver ×
+    impl, the longest run that took a step or fell or failed (runs that stood still, such as
+    the sweeps' 0.5 s health checks, are left out), with ``impl`` filled in; in the order of
+    the results."""
+    runs = _walk_candidates(res, _walk_scenarios(res))
     if runs.empty:
+        return runs
+    steps = runs["run_id"].map(lambda rid: _metric(res, rid, "steps_completed"))
+    runs = runs[(runs["status"] != "ok") | (steps > 0)]
+    if runs.empty:
+        return runs
+    keys = ["scenario", "controller", "solver", runs.pipe(_impl_of).rename("impl_")]
+    chosen = [_prefer_full(res, group).iloc[-1] for _, group in runs.groupby(keys, sort=False)]
+    frame = pd.DataFrame(chosen)
+    return frame.assign(impl=_impl_of(frame)).reset_index(drop=True)
+
+
+def walking(res: Results) -> PaperTable:
+    """Steps, falls, CoM / DCM / landing errors, CoP margin, slip and time per phase of every
+    walk run, grouped by robot."""
+    t = PaperTable("walking", "Walking: each controller × solver on the walk scenarios", "", None)
+    walks = _walk_scenarios(res)
+    if _walk_candidates(res, walks).empty:
         t.missing = (
             "Run a walk scenario in closed loop, e.g. `wbcbench run scenarios/tocabi_walk.yaml "
             "--controller qp_wbc` or `make bench` (the `walks` matrix of sweeps/default.yaml)."
         )
         return t
-    # a run shortened before its first touchdown (the sweeps' 0.5 s health checks) stood still
-    steps = runs["run_id"].map(lambda rid: _metric(res, rid, "steps_completed"))
-    runs = runs[(runs["status"] != "ok") | (steps > 0)]
+    runs = walk_runs(res)
     if runs.empty:
         t.missing = "No walk run got as far as its first step; run one at full length."
         return t
-    rows = []
-    keys = ["scenario", "controller", "solver", runs.pipe(_impl_of).rename("impl_")]
-    for _, group in runs.groupby(keys, sort=False):
-        run = _prefer_full(res, group).iloc[-1]
-        rows.append(_row(res, run, walks[str(run["scenario"])].walk.com_task))
+    rows = [_row(res, run, walks[str(run["scenario"])].walk.com_task) for _, run in runs.iterrows()]
     frame = pd.DataFrame(rows).sort_values(["robot", "scenario"], kind="stable")
     t.frame = frame.reset_index(drop=True)
     t.notes += [
