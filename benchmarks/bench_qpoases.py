@@ -11,7 +11,9 @@ call as a control loop would, so every usage solves the same QPs:
 * ``casadi hot``: one object, CasADi's matrix hotstart with every field;
 * ``libdwbc``: ``qpoases_libdwbc`` (setToMPC for task QPs, setToReliable for the wrench QP, the
   working set kept, matrices re-sent when they changed);
-* ``libdwbc cold``: libdwbc's options, but ``init`` every call (the options alone);
+* ``libdwbc cold``: libdwbc's options, but ``init`` every call (the options alone; each init
+  starts the bounds inactive, as ``qpoases_libdwbc``'s first one does); for the wrench QP also
+  ``libdwbc cold, initialStatusBounds=-1``, setToReliable's own start at the lower bounds;
 * ``casadi cold`` with one option of setToMPC's at a time (what each option contributes to a
   solve from scratch).
 
@@ -118,6 +120,8 @@ def usages(level: str) -> dict[str, tuple[str, str, dict[str, float]]]:
         "libdwbc": ("hot", lib, {}),
         "libdwbc cold": ("cold", lib, {}),
     }
+    if level == "wrench":  # libdwbc's init of the contact QP, which cycles (docs/qpoases.md)
+        out["libdwbc cold, initialStatusBounds=-1"] = ("cold", lib, {"initialStatusBounds": -1.0})
     for key, value in MPC_CHANGES.items():
         out[f"casadi cold, {key}={value:g}"] = ("cold", "casadi", {key: value})
     return out

@@ -397,3 +397,37 @@ def test_osf_hqp_asks_for_a_wrench_handle_for_its_final_qp() -> None:
     )
     with pytest.raises(ValueError, match="unknown QP kind 'nope'; valid choices: task, wrench"):
         ctx.new_solver("nope")
+
+
+@needs_qpoases_libdwbc
+@pytest.mark.parametrize("impl", ["python", "native"])
+@pytest.mark.parametrize("scenario", ["libdwbc_osf_cycle", "lee2021iros_table1"])
+def test_qpoases_libdwbc_solves_the_first_tick_of_a_replay(scenario: str, impl: str) -> None:
+    """The contact-wrench QP's first solve is an init from scratch: it stays within libdwbc's
+    cap of 300 working-set changes (started at setToReliable's lower bounds, the homotopy
+    cycled past it and the tick failed), and every QP of the first ticks passes the independent
+    KKT check; the wrench QP then hot-starts."""
+    from wbcbench.bench.checks import CHECK_FACTOR, SolverCapture, check_reported
+    from wbcbench.runs import plan_run
+    from wbcbench.scenarios.load import load_scenario
+    from wbcbench.sim.replay import record_states, replay
+
+    loaded = load_scenario(scenario, ("duration=0.006",))
+    rec = record_states(plan_run(loaded, "osf_hqp"))
+    pairs: list[tuple[Problem, Any]] = []
+    wrench: list[Any] = []
+
+    def check(i: int, out: Any) -> str:
+        wrench.append(next(sol for problem, sol in pairs if problem.name == "wrench"))
+        message = check_reported(pairs, CHECK_FACTOR)
+        pairs.clear()
+        return message
+
+    params = "periodic:1" if scenario == "libdwbc_osf_cycle" else "inline"
+    config = {"impl": impl, "params": params}
+    run = plan_run(loaded, "osf_hqp", "qpoases_libdwbc", mode="hot", config=config, timing=True)
+    timings = replay(run, rec, on_step=check, wrap_solver=lambda h: SolverCapture(h, pairs))
+    assert (timings.failures, timings.message) == (0, "")
+    assert len(wrench) == len(rec) >= 3
+    assert wrench[0].success and wrench[0].iterations < 300
+    assert all(sol.success and not sol.rebuilt for sol in wrench[1:])

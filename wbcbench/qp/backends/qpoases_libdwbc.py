@@ -18,6 +18,12 @@ are those of the authors' C++ library, libdwbc (``CQuadraticProgram::SolveQPoase
 * after a failed ``hotstart``: a fresh ``SQProblem`` with ``setToReliable()``, ten times the
   ``nWSR`` cap, initialised from scratch in the same call.
 
+One departure, in the first ``init`` alone: it starts the box bounds inactive. The QPs have none;
+qpOASES stands ±infinity in for them, and ``setToReliable()`` starts each variable at its lower
+one, a homotopy that cycles on the contact-wrench QP (thousands of working-set changes, past
+libdwbc's caps). ``setToMPC()`` starts them inactive anyway; the options go back to
+libdwbc's before the first ``hotstart`` (docs/qpoases.md).
+
 libdwbc sends ``H`` and ``A`` with every ``hotstart`` (the matrix hotstart, which rebuilds
 qpOASES' factorisations of the kept working set). Here the matrices go only when they changed
 since the last call, else the vector ``hotstart`` keeps the factorisations: on a whole-body

@@ -154,7 +154,7 @@ QpOasesSolver::QpOasesSolver(SolveMode mode, const QpOasesOptions& options,
   }
 }
 
-qpOASES::Options QpOasesSolver::make_options(bool reliable) const {
+qpOASES::Options QpOasesSolver::make_options(bool reliable, bool first_init) const {
   qpOASES::Options options;
   if (profile_ == QpOasesProfile::kCasadi) {
     options.setToDefault();
@@ -165,6 +165,12 @@ qpOASES::Options QpOasesSolver::make_options(bool reliable) const {
     options.setToMPC();
   }
   options.printLevel = qpOASES::PL_NONE;
+  // libdwbc passes no box bounds to a QP that has none: qpOASES stands ±INFTY in for them, and
+  // with far bounds on (setToReliable) they count as bounds. setToReliable's initialStatusBounds
+  // (lower) starts the first homotopy with every variable at a bound the QP does not have, and on
+  // the contact-wrench QP that homotopy cycles (docs/qpoases.md). The first init starts them
+  // inactive, as setToMPC does; call() sets libdwbc's options back for every later call.
+  if (first_init && libdwbc()) options.initialStatusBounds = qpOASES::ST_INACTIVE;
   for (const auto& [name, value] : overrides_) {
     if (auto b = bool_fields().find(name); b != bool_fields().end())
       options.*(b->second) = value != 0.0 ? qpOASES::BT_TRUE : qpOASES::BT_FALSE;
@@ -180,7 +186,9 @@ qpOASES::Options QpOasesSolver::make_options(bool reliable) const {
   return options;
 }
 
-void QpOasesSolver::set_options(bool reliable) { problem_->setOptions(make_options(reliable)); }
+void QpOasesSolver::set_options(bool reliable, bool first_init) {
+  problem_->setOptions(make_options(reliable, first_init));
+}
 
 QpOasesOptions QpOasesSolver::settings() const {
   const qpOASES::Options o = make_options(profile_ == QpOasesProfile::kLibdwbcWrench);
@@ -291,8 +299,11 @@ void QpOasesSolver::call(const QpBuffers& qp, double setup_seconds, unsigned cha
     flag = problem_->init(h_.data(), g_.data(), lbx, ubx, nwsr, nullptr);
     last_call_ = "init";
   } else if (!called_once_) {
+    const bool reliable = profile_ == QpOasesProfile::kLibdwbcWrench;
+    if (libdwbc()) set_options(reliable, true);
     flag = sq_->init(h_.data(), g_.data(), a_.data(), lbx, ubx, lba_.data(), uba_.data(), nwsr,
                      nullptr);
+    if (libdwbc()) set_options(reliable);
     last_call_ = "init";
   } else if (changed & (kFieldH | kFieldA | kFieldC)) {
     flag = sq_->hotstart(h_.data(), g_.data(), a_.data(), lbx, ubx, lba_.data(), uba_.data(),

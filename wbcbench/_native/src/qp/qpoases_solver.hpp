@@ -21,6 +21,9 @@
 //   * the first call is init, every later one a hotstart from the kept working set: the
 //     matrix hotstart when H or [A; C] changed since the last call, else the vector hotstart
 //     (qpOASES keeps its factorisations);
+//   * the first init alone starts the (absent) box bounds inactive, where setToReliable()
+//     starts them at their lower bounds: that homotopy cycles on the contact-wrench QP
+//     (docs/qpoases.md); the object then runs libdwbc's options from its first hotstart on;
 //   * a failed hotstart is followed, in the same call, by a fresh SQProblem with
 //     setToReliable() and ten times the nWSR cap, initialised from scratch (libdwbc's fallback).
 // Option names of qpOASES' Options (a number each: enableRamping, terminationTolerance, ...)
@@ -65,7 +68,8 @@ class QpOasesSolver : public QpSolver {
   // fallback after a failed hotstart)
   const std::string& last_call() const { return last_call_; }
   // the qpOASES Options a new object of this solver gets (a reinit's: setToReliable), by field
-  // name (booleans 0 / 1; initialStatusBounds -1 lower, 0 inactive, 1 upper)
+  // name (booleans 0 / 1; initialStatusBounds -1 lower, 0 inactive, 1 upper); a libdwbc
+  // profile's first init differs in initialStatusBounds only (inactive)
   QpOasesOptions settings() const;
   // the working-set changes of the last call (nWSR on return, both calls' on a reinit)
   int last_nwsr() const { return last_nwsr_; }
@@ -86,9 +90,10 @@ class QpOasesSolver : public QpSolver {
   // init or hotstart, then the outcome and the solution
   void call(const QpBuffers& qp, double setup_seconds, unsigned changed);
   // the qpOASES options of the profile (setToReliable() when `reliable`, for the wrench QP and
-  // libdwbc's fallback) with this object's overrides
-  qpOASES::Options make_options(bool reliable) const;
-  void set_options(bool reliable);
+  // libdwbc's fallback) with this object's overrides; `first_init`: a libdwbc profile's first
+  // init, which starts the bounds inactive
+  qpOASES::Options make_options(bool reliable, bool first_init = false) const;
+  void set_options(bool reliable, bool first_init = false);
   bool libdwbc() const { return profile_ != QpOasesProfile::kCasadi; }
 
   QpOasesProfile profile_;
