@@ -202,3 +202,21 @@ def test_the_phase_figure_draws_each_runs_medians_p99s_and_the_deadline(
     assert [y for y in p99 if y] == [[1400.0, 2 * slowest], [1300.0, 1200.0], [1600.0, 1500.0]]
     assert any(list(line.get_ydata()) == [1000.0, 1000.0] for line in ax.get_lines())
     assert ax.get_yscale() == scale
+
+
+def test_a_walk_figure_shows_the_run_that_got_furthest() -> None:
+    """A walk that failed at 2.05 s is shown before the 0.5 s checks that stood still; among
+    runs of equal length, an ok one before a fall."""
+    import pandas as pd
+
+    from wbcbench.report.plots import _walk_run
+
+    runs = pd.DataFrame(
+        {
+            "run_id": ["check", "walk", "fell", "whole"],
+            "status": ["ok", "failed", "fell", "ok"],
+            "sim_duration_s": [0.5, 2.052, 0.5, 0.5],
+        }
+    )
+    assert _walk_run(runs)["run_id"] == "walk"
+    assert _walk_run(runs.iloc[[2, 0]])["run_id"] == "check"

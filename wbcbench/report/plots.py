@@ -643,7 +643,8 @@ def peers_figure(res: Results, out: Path) -> list[Path]:
 
 
 def _walk_run(runs: pd.DataFrame) -> pd.Series:
-    """The run a walk figure shows: the one that got furthest, an ok one before a fall."""
+    """The run a walk figure shows: the one that got furthest in time (a walk that failed at
+    its third step before a short check that stood), among equals an ok one before a fall."""
     key = pd.DataFrame(
         {
             "ok": (runs["status"] == "ok").astype(int),
@@ -651,7 +652,7 @@ def _walk_run(runs: pd.DataFrame) -> pd.Series:
         },
         index=runs.index,
     )
-    return runs.loc[key.sort_values(["ok", "sim"], kind="stable").index[-1]]
+    return runs.loc[key.sort_values(["sim", "ok"], kind="stable").index[-1]]
 
 
 def walk_figures(res: Results, out: Path) -> list[Path]:
