@@ -87,3 +87,27 @@ def test_a_child_without_progress_says_so_and_names_its_solver() -> None:
         "exceeded the wall-clock guard of 1 s having made no progress, in solver proxqp: stuck "
         "before its first tick or solve; the run was stopped"
     )
+
+
+def _late_step(before: float) -> None:
+    time.sleep(before)
+    guard.watch_step("step x", 0.5)
+    time.sleep(60.0)
+
+
+def test_a_stalled_step_says_how_long_it_ran_and_how_long_the_job_did() -> None:
+    """A step stopped at its own deadline reports the time since the step began, not since
+    the job began: a job that worked 1.5 s before a step that hung is stopped about 0.5 s into
+    the step."""
+    import re
+
+    outcome = guard.call_with_deadline(_late_step, (1.5,), 60.0)
+    assert not outcome.ok and outcome.stalled
+    found = re.fullmatch(
+        r"step x did not end within its own deadline of 0.5 s; stopped ([0-9.]+) s into it "
+        r"\(([0-9.]+) s into the job\)",
+        outcome.message,
+    )
+    assert found, outcome.message
+    into, job = map(float, found.groups())
+    assert 0.5 <= into < job and job >= 1.5 + 0.5

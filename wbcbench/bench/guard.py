@@ -508,11 +508,12 @@ def _stopped(
     """The outcome of a child stopped at a deadline: which one, and what it was doing."""
     if stalled:
         step = stalled[0]
+        into = time.monotonic() - (step.until - step.limit)  # since the step began
         return Guarded(
             None,
             False,
             f"{step.doing} did not end within its own deadline of {step.limit:g} s; stopped "
-            f"after {waited:.1f} s",
+            f"{into:.1f} s into it ({waited:.1f} s into the job)",
             stalled=True,
         )
     where = seen.doing if seen is not None and seen.doing else doing
