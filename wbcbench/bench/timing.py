@@ -168,8 +168,7 @@ def guarded_timing_group(
     seconds = sum(
         limit or timing_deadline(ticks, recorded if k == 0 else 0) for k in range(len(group))
     )
-    solvers = sorted({j.run.settings.solver for j, _ in group})
-    doing = f"solver {', '.join(solvers)}"
+    doing = f"solver {job.run.settings.solver}"  # one solver per group
     printed = printed_path(
         folder, rid if len(group) == 1 else f"group-{group_id([r for _, r in group])}"
     )
@@ -184,11 +183,6 @@ def guarded_timing_group(
     return [ended_record(job.run, rid, version, "failed", outcome.message, "timing", job.extra)]
 
 
-def guarded_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
-    """One timing row, alone, under the wall-clock guard."""
-    return guarded_timing_group([(job, rid)], version, folder)[0]
-
-
 class TimedRow:
     """One timing row of a group: its replayer, the checks after each step, and its row."""
 
@@ -201,6 +195,11 @@ class TimedRow:
         self.rec: Recording | None = None
         self.seconds = 0.0  # wall time of its own set-up and steps [s]
         self.ended = False  # stopped early: skipped (too slow) or an error
+
+    @property
+    def done(self) -> int:
+        """Ticks stepped."""
+        return self.replayer.done if self.replayer is not None else 0
 
     @property
     def running(self) -> bool:
@@ -319,7 +318,7 @@ def step_interleaved(rows: list[TimedRow], block: int, total: int = 0) -> None:
             r.step_block(first, first + block)
         first += block
         if total:
-            report_progress(min(first, total // max(1, len(rows))) * len(rows), total)
+            report_progress(sum(r.done for r in rows), total)
 
 
 def run_timing_group(
@@ -357,12 +356,6 @@ def run_timing_group(
         }
     # a busy machine is said once per sweep (SweepReport.busy_line), not per row
     return [r.record(conditions) for r in rows]
-
-
-def run_timing_job(job: Job, rid: str, version: str, folder: str | Path) -> RunRecord:
-    """Replay one controller × solver × mode alone on the scenario's recorded window; never
-    raises."""
-    return run_timing_group([(job, rid)], version, folder)[0]
 
 
 # -- QP dumps for the solver comparison

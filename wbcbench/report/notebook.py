@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -178,6 +179,14 @@ def _ticks(n: float, phase: str = "") -> str:
     return f"{n:.0f} {phase + ' ' if phase else ''}tick{'' if n == 1 else 's'}"
 
 
+#: the columns that name a walk run in the notebook's tables
+IDENTITY = ("robot", "scenario", "controller", "solver", "impl")
+
+
+def _identity(run: pd.Series) -> dict[str, Any]:
+    return {key: run[key] for key in IDENTITY}
+
+
 def walk_verdicts(res: Results) -> pd.DataFrame:
     """One row per run of the walking table (:func:`wbcbench.report.tables.walking.walk_runs`):
     the steps it completed of those planned, whether it fell, the largest CoM and landing
@@ -214,11 +223,7 @@ def walk_verdicts(res: Results) -> pd.DataFrame:
             )
         rows.append(
             {
-                "robot": run["robot"],
-                "scenario": run["scenario"],
-                "controller": run["controller"],
-                "solver": run["solver"],
-                "impl": run["impl"],
+                **_identity(run),
                 "steps": f"{done:.0f}/{planned:.0f}",
                 "fell": run["status"] == "fell",
                 "CoM err max [mm]": com,
@@ -227,7 +232,7 @@ def walk_verdicts(res: Results) -> pd.DataFrame:
                 "why": why,
             }
         )
-    columns = ["robot", "scenario", "controller", "solver", "impl", "steps", "fell"]
+    columns = [*IDENTITY, "steps", "fell"]
     columns += ["CoM err max [mm]", "landing err max [mm]", "verdict", "why"]
     return pd.DataFrame(rows, columns=columns)
 
@@ -246,11 +251,7 @@ def walk_phase_times(res: Results) -> pd.DataFrame:
         for phase in PHASES:
             rows.append(
                 {
-                    "robot": run["robot"],
-                    "scenario": run["scenario"],
-                    "controller": run["controller"],
-                    "solver": run["solver"],
-                    "impl": run["impl"],
+                    **_identity(run),
                     "phase": phase,
                     "ticks": _metric(res, run["run_id"], f"ticks_{phase}"),
                     "median [µs]": _metric(res, run["run_id"], f"t_total_median_us_{phase}"),
@@ -258,7 +259,7 @@ def walk_phase_times(res: Results) -> pd.DataFrame:
                     "deadline [µs]": 1e6 / spec.control_rate if spec else float("nan"),
                 }
             )
-    columns = ["robot", "scenario", "controller", "solver", "impl", "phase", "ticks"]
+    columns = [*IDENTITY, "phase", "ticks"]
     columns += ["median [µs]", "p99 [µs]", "deadline [µs]"]
     return pd.DataFrame(rows, columns=columns)
 
