@@ -133,10 +133,21 @@ def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule() -> None:
     )
 
 
-@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp"])
+@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp", "rc_lqp"])
 def test_native_tick_that_follows_a_schedule_is_planned(controller: str) -> None:
     run = plan_run(WALK, controller, "daqp", config={"impl": "native"})
     assert run.impl == "native"
+
+
+def test_a_walk_uses_three_contact_sets() -> None:
+    schedule = plan_run(WALK, "qp_wbc", "daqp").context().schedule
+    assert schedule is not None
+    left, right = (schedule.frames.index(f) for f in ("l_sole", "r_sole"))
+    # double support, then single support on the stance foot of the first step, then the other
+    first = schedule.phase(schedule.touchdowns()[0][0] - 0.1).active
+    assert len(first) == 1
+    other = (left,) if first == (right,) else (right,)
+    assert schedule.contact_sets() == [tuple(sorted((left, right))), first, other]
 
 
 def test_a_sweep_runs_native_only_the_ticks_that_follow_a_schedule() -> None:

@@ -28,7 +28,13 @@ SHORT = [
 
 
 #: (controller, impl): the weighted QP in both impls, the hierarchies natively
-WALKERS = [("qp_wbc", "python"), ("qp_wbc", "native"), ("hqp", "native"), ("lqp", "native")]
+WALKERS = [
+    ("qp_wbc", "python"),
+    ("qp_wbc", "native"),
+    ("hqp", "native"),
+    ("lqp", "native"),
+    ("rc_lqp", "native"),
+]
 
 
 @pytest.mark.parametrize(("controller", "impl"), WALKERS)

@@ -109,6 +109,12 @@ def native_schedule_refusal(controller: str) -> str:
     )
 
 
+def stance_tasks(tasks: list[Task], frames: set[str]) -> list[Task]:
+    """The tasks of a tick whose active contacts are on ``frames``: those that drive none of
+    them (a swing task leaves the QPs while its foot stands)."""
+    return [task for task in tasks if getattr(task, "frame", None) not in frames]
+
+
 @dataclass
 class ControllerContext:
     """Everything a controller may use besides its own settings.
@@ -321,10 +327,7 @@ class Controller(ABC):
         self.frames = [c.frame for c in contacts]
         self.contacts = contacts
         if changed:
-            held = set(self.frames)
-            self.active_tasks = [
-                task for task in self.ctx.tasks if getattr(task, "frame", None) not in held
-            ]
+            self.active_tasks = stance_tasks(self.ctx.tasks, set(self.frames))
         self.Cw, self.nc = Cw, contacts_dim(contacts)
         self.lw, self.uw = np.empty_like(lw), np.empty_like(uw)
         schedule.scale_bounds(phase, rows, fmax, lw, uw, self.lw, self.uw)
