@@ -367,8 +367,10 @@ class RcLqp(NativeController):
     # -- a contact set that changes ------------------------------------------------------------
 
     def select_contacts(self, t: float) -> Any:
-        """The active contacts, also for the full-model LQP this controller falls back on."""
-        self.full.select_contacts(t)
+        """The active contacts, also for the full-model LQP this controller falls back on (the
+        Python one: the native tick's selects with the tick)."""
+        if self.impl == "python":
+            self.full.select_contacts(t)
         return super().select_contacts(t)
 
     def _stance(self, active: tuple[int, ...]) -> _Stance:
