@@ -294,6 +294,10 @@ class _Stance:
     split: ChainSplit
     reduced: ReducedDynamics
     rows: _RowSplit | None = None
+    #: the native tick's settings for the set (LexicographicSettings, RcLqpSettings, the row
+    #: split's lists) and the row split they were made from: made once, handed over at each
+    #: change to the set
+    native: tuple[Any, ...] | None = None
 
 
 @dataclass
@@ -414,12 +418,14 @@ class RcLqp(NativeController):
         if schedule is None:
             return
         for active in schedule.contact_sets():
+            contacts, Cw, lw, uw, _, _ = self.contact_set(active)
+            tasks = stance_tasks(self.ctx.tasks, {c.frame for c in contacts})
             stance = self._stance(active)
             if stance.rows is None:
-                frames = {self.ctx.contacts[i].frame for i in active}
-                stance.rows = self.row_split(
-                    state, stance.reduced, stance_tasks(self.ctx.tasks, frames)
-                )
+                stance.rows = self.row_split(state, stance.reduced, tasks)
+            if self.impl == "native" and stance.native is None:
+                wrench = (Cw, lw, uw, contacts_dim(contacts))
+                stance.native = (stance.rows, *self.tick_settings(stance.rows, tasks, wrench))
 
     def tick_args(self) -> tuple[Any, ...]:
         """Every stance known, the one of every contact first: the tick builds their reduced
@@ -432,11 +438,32 @@ class RcLqp(NativeController):
         return super().native_step(state, t)
 
     def configure_tick(self, tick: Any) -> None:
+        rows = self._rows
+        if rows is None:
+            assert self._tick_state is not None
+            rows = self._decide_rows(self._tick_state)
+        stance = self._stances.get(self.active_contacts)
+        if stance is not None and stance.native is not None and stance.native[0] is rows:
+            settings = stance.native
+        else:
+            wrench = (self.Cw, self.lw, self.uw, self.nc)
+            settings = (rows, *self.tick_settings(rows, self.active_tasks, wrench))
+            if stance is not None:
+                stance.native = settings
+        _, s, rc, lqp1_rows = settings
+        tick.configure(s, rc)
+        tick.set_row_split(lqp1_rows)
+
+    def tick_settings(
+        self, rows: _RowSplit, tasks: list[Task], wrench: tuple[Any, ...]
+    ) -> tuple[Any, Any, list[list[int]]]:
+        """The native tick's settings for a contact set: its tasks, its wrench rows ``(Cw, lw,
+        uw, nc)`` (the bounds until ``set_wrench_bounds`` sets a tick's) and its row split."""
         cfg = self.config
         core = _native.core()
-        s = lexicographic_settings(cfg, self.ctx.tasks, self.active_tasks)
+        s = lexicographic_settings(cfg, self.ctx.tasks, tasks)
         s.accept_tol = accept_tol(self.ctx)
-        set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+        set_limits(s, self.ctx.tau_max, *wrench)
         rc = core.RcLqpSettings()
         rc.assembly = getattr(core.Assembly, cfg.assembly)
         rc.coupling_priority = cfg.coupling_priority
@@ -446,14 +473,10 @@ class RcLqp(NativeController):
         rc.coupling_tol = cfg.coupling_tol
         rc.wrench_tol = cfg.wrench_tol
         rc.infeasible_coupling = getattr(core.InfeasibleCoupling, cfg.infeasible_coupling)
-        tick.configure(s, rc)
-        rows = self._rows
-        if rows is None:
-            assert self._tick_state is not None
-            rows = self._decide_rows(self._tick_state)
-        tick.set_row_split(
-            [rows.lqp1[t.name].tolist() if t.name in rows.lqp1 else [] for t in self.ctx.tasks]
-        )
+        lqp1_rows = [
+            rows.lqp1[t.name].tolist() if t.name in rows.lqp1 else [] for t in self.ctx.tasks
+        ]
+        return s, rc, lqp1_rows
 
     def level_solve(self, tick: Any) -> LevelSolve:
         # handles for the most levels any contact set gives (every priority), as lqp's
