@@ -102,11 +102,18 @@ ticks). Diagnostics: ``replan``, ``fallback``, ``coupling_residual`` (eq. 30), `
 (max |Γ_exact − Γ_paper| [N·m]) and each level's optimal slacks.
 
 ``impl: native`` runs the same step in C++ (``wbcbench/_native/src/controllers/rc_lqp.cpp``):
-the reduced model, the row split (decided on its first tick, as here), the preview, both LQPs
+the reduced model, the row split (decided here and handed over), the preview, both LQPs
 and every re-solve, the assembly and its checks; each hierarchy's level QPs go to the solver
 through the lean path with the handles of the pool the Python step uses for it, so warm and hot
 handles see the same problems in both impls. ``reduced``, ``lqp1``, ``lqp2`` and ``fallback``
 are then timed natively.
+
+On a changing contact set (a walk) the chains follow the stance: a foot in the air is a chain,
+a standing one closes the constraint chain. Each contact set has its own chain split, reduced
+model and row split (a *stance*), built once and kept; with a schedule, :meth:`RcLqp.on_start`
+builds the stance of every set the schedule uses at the first state, so a change of contacts
+switches to one (:meth:`RcLqp.contacts_changed`) and builds nothing. The native tick holds a
+reduced model per stance, made with it, and switches with the set it is handed.
 """
 
 from __future__ import annotations
