@@ -32,6 +32,7 @@ import pytest
 
 from wbcbench import _native
 from wbcbench.controllers.base import Controller
+from wbcbench.controllers.native import priority_groups
 from wbcbench.dynamics.state import RobotState
 from wbcbench.metrics.oracle import forward_dynamics
 from wbcbench.robots.loader import Robot
@@ -209,3 +210,39 @@ def test_native_rc_lqp_refuses_a_contact_set_it_has_no_stance_for(tocabi: Robot)
     with pytest.raises(ValueError) as exc:
         tick.set_wrench_bounds(np.zeros(3), np.zeros(3))
     assert str(exc.value) == f"rc_lqp: wrench bounds of 3 and 3 rows; the contact set has {nw}"
+
+
+def test_native_rc_lqp_builds_a_stance_the_schedule_did_not_foresee(
+    tocabi: Robot, walk_states: dict[float, tuple[np.ndarray, np.ndarray]]
+) -> None:
+    """A contact set first met after set-up (here: the schedule foresees double support only)
+    gets its stance on its first tick, in both impls: the tick takes its chain split then, and
+    its row split, decided at that tick's state, is the reference's."""
+    python = controller("rc_lqp", "daqp", {"impl": "python"})
+    native = controller("rc_lqp", "daqp", {"impl": "native"})
+    q0, v0 = walk_states[0.0]
+    for c in (python, native):
+        schedule = c.ctx.schedule
+        assert schedule is not None
+        double = schedule.contact_sets()[0]
+        schedule.contact_sets = lambda double=double: [double]  # type: ignore[method-assign]
+        c.start(RobotState(tocabi, q0, v0))
+        assert list(c._stances) == [double]
+    for t in (1.15, 1.6):  # double support, then single support on r_sole, unforeseen
+        q, v = walk_states[t]
+        a = native.step(RobotState(tocabi, q, v), t)
+        b = python.step(RobotState(tocabi, q, v), t)
+        assert a.ok and b.ok, (t, a.message, b.message)
+    tick, rows, tasks = native.native_tick, python._rows, python.ctx.tasks
+    assert rows is not None and len(python.active_contacts) == 1
+    assert list(tick.active_contacts) == list(python.active_contacts)
+    assert tick.chain_priority == rows.chain_priority
+    offsets = np.cumsum([0] + [t.dim for t in tasks])
+    _, groups = priority_groups(tasks, python.active_tasks)
+    for group, split1, split2 in zip(groups, tick.lqp1_rows, tick.lqp2_rows, strict=True):
+        assert list(split1) == [offsets[i] + r for i in group for r in rows.lqp1[tasks[i].name]]
+        assert list(split2) == [offsets[i] + r for i in group for r in rows.lqp2[tasks[i].name]]
+    # the native answer realises its prediction on the stance's contact
+    frames = [native.ctx.contacts[i].frame for i in native.active_contacts]
+    oracle = forward_dynamics(RobotState(tocabi, q, v), a.tau, frames)
+    assert float(np.abs(oracle.qdd - a.qdd).max()) <= 1e-6 * max(1.0, float(np.abs(a.qdd).max()))
