@@ -122,6 +122,21 @@ def test_walk_steps_or_footsteps(tmp_path: Path) -> None:
     )
 
 
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        (-0.05, "Input should be greater than or equal to 0"),
+        (1.5, "Input should be less than or equal to 1"),
+    ],
+)
+def test_walk_touchdown_velocity_is_a_downward_speed(
+    tmp_path: Path, value: float, message: str
+) -> None:
+    raw = raw_of(WALK)
+    raw["walk"]["touchdown_velocity"] = value
+    assert error_of(tmp_path, raw) == f"walk.touchdown_velocity: {message}"
+
+
 def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule() -> None:
     with pytest.raises(WbcBenchError) as exc:
         plan_run(WALK, "to_osf", "daqp", config={"impl": "native"})
@@ -164,8 +179,13 @@ def test_phases_and_ramps() -> None:
     assert ramp.active == (0, 1)
     assert ramp.lower[0] == pytest.approx(0.5) and ramp.upper[0] == pytest.approx(0.5)
     assert s.phase(1.0).active == (1,)  # lifted off
-    assert s.phase(2.05).lower[0] == pytest.approx(0.5)  # f_min ramps in after touchdown
-    assert s.phase(2.05).upper[0] == 1.0
+    # after touchdown f_min ramps in from 0, the upper bound from the confirming load
+    # (20 N of the 500 N ramp force) to the full bound, as they ramp out before lift-off
+    rise = 20.0 / 500.0
+    assert s.phase(2.0).lower[0] == 0.0 and s.phase(2.0).upper[0] == pytest.approx(rise)
+    assert s.phase(2.05).lower[0] == pytest.approx(0.5)
+    assert s.phase(2.05).upper[0] == pytest.approx(rise + (1 - rise) * 0.5)
+    assert s.phase(2.1).lower[0] == 1.0 and s.phase(2.1).upper[0] == 1.0
     # the bounds written for the ramp: f_min and min(f_max, weight) scaled
     lw, uw = np.array([10.0, -np.inf]), np.array([np.inf, 0.0])
     out_l, out_u = np.empty(2), np.empty(2)
@@ -201,7 +221,8 @@ def test_landing_off_target() -> None:
 
 
 def test_walk_expands_into_schedule_tasks_and_plan() -> None:
-    run = plan_run(WALK, "qp_wbc", "daqp", overrides=["walk.steps=2", "duration=4.7"])
+    overrides = ["walk.steps=2", "duration=4.7", "walk.touchdown_velocity=0.05"]
+    run = plan_run(WALK, "qp_wbc", "daqp", overrides=overrides)
     ctx = run.context()
     assert ctx.schedule is not None and ctx.schedule.plan is not None
     names = [t.name for t in ctx.tasks]
@@ -215,6 +236,9 @@ def test_walk_expands_into_schedule_tasks_and_plan() -> None:
     # the swing task's offset lands the foot on its footstep
     swing = next(t for t in ctx.tasks if t.name == "swing.l_sole")
     step = plan.swings[0]
-    offset, _, _ = swing.reference.sample(step.touch_down)  # type: ignore[union-attr]
+    offset, rate, _ = swing.reference.sample(step.touch_down)  # type: ignore[union-attr]
     start = next(f for f in plan.footsteps if f.foot == "l_sole" and f.is_initial)
     assert np.allclose(offset[:3], np.array(step.position) - start.position)
+    # … moving straight down at walk.touchdown_velocity
+    assert plan.timing.touchdown_velocity == 0.05
+    assert np.allclose(rate, [0.0, 0.0, -0.05, 0.0, 0.0, 0.0])
