@@ -23,6 +23,7 @@ operational-space parameters (see :mod:`wbcbench.controllers.params`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -94,11 +95,29 @@ class OsfHqp(OsfControllerBase):
 
     def qp_calls(self, tick: Any) -> list[QpCall]:
         """One QP per level, then the wrench QP where there is a distribution space."""
+        return self.qp_calls_of(tick, [])
+
+    def rebind_calls(self, tick: Any) -> None:
+        """A new contact set's QPs (the tick makes them anew: a level may have left, and a
+        single contact has no wrench QP); a QP solved by the same handle as before keeps its
+        call, and with it the C++ solver's warm start."""
+        self.native_calls = self.qp_calls_of(tick, self.native_calls)
+
+    def qp_calls_of(self, tick: Any, old: Sequence[QpCall]) -> list[QpCall]:
+        """The tick's QPs, each with its handle: ``old``'s call where it has the same handle."""
         L = len(self.levels)
         names = [f"T{i + 1}" for i in range(L)] + ["wrench"]
         solvers = [*self.solvers, self.final_solver]
-        calls = self.config.solver_calls
-        return [QpCall(tick.qp(i), names[i], solvers[min(i, L)], calls) for i in range(tick.n_qps)]
+        calls: list[QpCall] = []
+        for i in range(tick.n_qps):
+            name, handle = names[min(i, L)], solvers[min(i, L)]
+            if i < len(old) and old[i].handle is handle and old[i].problem.name == name:
+                old[i].buffers = tick.qp(i)
+                old[i].rebind()
+                calls.append(old[i])
+            else:
+                calls.append(QpCall(tick.qp(i), name, handle, self.config.solver_calls))
+        return calls
 
     def native_region(
         self, q: np.ndarray, v: np.ndarray, t: float, timer: NativeTimer

@@ -107,6 +107,7 @@ class OsfControllerBase(NativeController):
 
     config: OsfBaseConfig
     affine: bool = False
+    native_schedule = True
     #: the native settings' type name in the module
     settings_type: ClassVar[str] = ""
 
@@ -115,6 +116,9 @@ class OsfControllerBase(NativeController):
         cfg = self.config
         self.frames = ctx.contact_frames
         self.group_tasks(ctx.tasks)
+        #: every task in level order: the native tick's tasks, of which the levels of a contact
+        #: set pick the active ones (a subsequence: the same order)
+        self.tick_order = list(self.level_tasks)
         self.model = self.osf_model()
         if ctx.schedule is not None and parse_params_mode(cfg.params).kind == "async":
             raise ControllerError(
@@ -177,12 +181,14 @@ class OsfControllerBase(NativeController):
         by :meth:`configure_tick`)."""
 
     def tick_tasks(self) -> list[Task]:
-        return self.level_tasks
+        return self.tick_order
 
     def configure_tick(self, tick: Any) -> None:
         cfg = self.config
         s = getattr(_native.core(), self.settings_type)()
         self.native_settings(s)
+        index = {id(task): i for i, task in enumerate(self.tick_order)}
+        s.tasks = [index[id(task)] for task in self.level_tasks]
         s.level_dims = [sum(t.dim for t in tasks) for tasks in self.levels]
         s.force_level = [kind == "force" for kind in self.kinds]
         s.inverse = cfg.inverse
@@ -456,11 +462,11 @@ class ToOsf(OsfControllerBase):
         own: dict[str, float] = {}
         tick = self.native_tick
         if ok:
-            amend = tick.rho - tick.tasks.acc_ref
-            tasks = tick.tasks
-            for i, task in enumerate(self.level_tasks):
-                rows = slice(tasks.offset(i), tasks.offset(i) + tasks.dim(i))
-                own[f"amend.{task.name}"] = float(np.linalg.norm(amend[rows]))
+            amend = tick.rho - tick.level_ref
+            pos = 0
+            for task in self.level_tasks:
+                own[f"amend.{task.name}"] = float(np.linalg.norm(amend[pos : pos + task.dim]))
+                pos += task.dim
         return self.osf_diagnostics(state, terms, ok, own)
 
     def step(self, state: RobotState, t: float) -> ControlOutput:
