@@ -70,6 +70,8 @@ class OsfHqp(OsfControllerBase):
         #: how many of the native tick's QPs the last tick reached
         self.reached = 0
 
+    set_attrs = (*OsfControllerBase.set_attrs, "WtW")
+
     def wrench_weighting(self) -> None:
         # a level per solver handle, also when a contact set's tasks form more levels
         solvers = getattr(self, "solvers", None)

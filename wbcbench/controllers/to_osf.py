@@ -108,6 +108,8 @@ class OsfControllerBase(NativeController):
     config: OsfBaseConfig
     affine: bool = False
     native_schedule = True
+    #: what a contact set fixes (:meth:`contacts_changed`), kept per set after its first tick
+    set_attrs: ClassVar[tuple[str, ...]] = ("levels", "kinds", "acc_bound", "level_tasks", "model")
     #: the native settings' type name in the module
     settings_type: ClassVar[str] = ""
 
@@ -119,6 +121,8 @@ class OsfControllerBase(NativeController):
         #: every task in level order: the native tick's tasks, of which the levels of a contact
         #: set pick the active ones (a subsequence: the same order)
         self.tick_order = list(self.level_tasks)
+        self._per_set: dict[tuple[int, ...], dict[str, Any]] = {}
+        self._tick_settings: dict[tuple[int, ...], Any] = {}
         self.model = self.osf_model()
         if ctx.schedule is not None and parse_params_mode(cfg.params).kind == "async":
             raise ControllerError(
@@ -163,13 +167,20 @@ class OsfControllerBase(NativeController):
         self.level_tasks = [task for tasks in self.levels for task in tasks]
 
     def contacts_changed(self) -> None:
-        """The OSF model and a fresh parameter server for the new contact set: the parameters
-        of the old set are never used (a periodic server computes its first set at once)."""
+        """The levels, OSF model and wrench weighting of the new contact set (made on its first
+        tick and kept: they depend on the set alone) and a fresh parameter server: the
+        parameters of the old set are never used (a periodic server computes its first set at
+        once)."""
         self.server.close()
-        self.group_tasks(self.active_tasks)
-        self.model = self.osf_model()
+        kept = self._per_set.get(self.active_contacts)
+        if kept is None:
+            self.group_tasks(self.active_tasks)
+            self.model = self.osf_model()
+            self.wrench_weighting()
+            self._per_set[self.active_contacts] = {a: getattr(self, a) for a in self.set_attrs}
+        else:
+            self.__dict__.update(kept)
         self.server = ParameterServer(self.model, self.config.params, self.ctx.robot)
-        self.wrench_weighting()
 
     def wrench_weighting(self) -> None:
         """The controller's wrench weighting for the current contact set (none here)."""
@@ -184,6 +195,15 @@ class OsfControllerBase(NativeController):
         return self.tick_order
 
     def configure_tick(self, tick: Any) -> None:
+        """The settings of the contact set (made on its first tick and kept; the ramped wrench
+        bounds follow every tick, ``set_wrench_bounds``) to the tick."""
+        s = self._tick_settings.get(self.active_contacts)
+        if s is None:
+            s = self._tick_settings[self.active_contacts] = self.tick_settings()
+        tick.configure(s)
+
+    def tick_settings(self) -> Any:
+        """The native settings of the present contact set."""
         cfg = self.config
         s = getattr(_native.core(), self.settings_type)()
         self.native_settings(s)
@@ -198,7 +218,7 @@ class OsfControllerBase(NativeController):
         s.asynchronous = self.server.mode.kind == "async"
         set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         s.acc_bound = np.concatenate(self.acc_bound or [np.zeros(0)])
-        tick.configure(s)
+        return s
 
     def osf_diagnostics(
         self, state: RobotState, terms: list[TaskTerm], ok: bool, own: dict[str, float]
@@ -426,6 +446,8 @@ class ToOsf(OsfControllerBase):
         super().__init__(ctx, config)
         self.solver = ctx.new_solver()
         self.wrench_weighting()
+
+    set_attrs = (*OsfControllerBase.set_attrs, "Sf")
 
     def wrench_weighting(self) -> None:
         self.Sf = wrench_selection(self.config.wrench_weights, self.contacts, self.name)
