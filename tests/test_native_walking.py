@@ -208,3 +208,19 @@ def test_native_equals_python_across_lift_off_and_touchdown(
     # hqp's cascade may find a lower level inconsistent once a bound is active (both impls say
     # so alike, checked above); the others keep every tick
     assert compared >= (1 if name == "hqp" else len(TIMES)), compared
+
+
+@pytest.mark.parametrize("name", ["to_osf", "osf_hqp"])
+def test_native_osf_prepares_every_contact_set_before_the_walk(
+    tocabi: Robot, walk_states: dict[float, tuple[np.ndarray, np.ndarray]], name: str
+) -> None:
+    """The native OSF controllers make each scheduled contact set's settings at the start, so
+    that no tick of the walk makes any (the first tick still selects its set)."""
+    native = controller(name, "daqp", {"impl": "native"})
+    native.start(RobotState(tocabi, *walk_states[0.0]))
+    assert native.active_contacts == (-1,)
+    prepared = dict(native._tick_settings)
+    assert {(0, 1), (0,), (1,)} <= set(prepared)
+    for t in TIMES:
+        assert native.step(RobotState(tocabi, *walk_states[t]), t).ok, t
+    assert native._tick_settings == prepared

@@ -23,7 +23,6 @@ operational-space parameters (see :mod:`wbcbench.controllers.params`).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -97,28 +96,33 @@ class OsfHqp(OsfControllerBase):
 
     def qp_calls(self, tick: Any) -> list[QpCall]:
         """One QP per level, then the wrench QP where there is a distribution space."""
-        return self.qp_calls_of(tick, [])
+        self._calls: dict[str, QpCall] = {}  # a new tick: new calls
+        return self.qp_calls_of(tick)
 
     def rebind_calls(self, tick: Any) -> None:
         """A new contact set's QPs (the tick makes them anew: a level may have left, and a
-        single contact has no wrench QP); a QP solved by the same handle as before keeps its
-        call, and with it the C++ solver's warm start."""
-        self.native_calls = self.qp_calls_of(tick, self.native_calls)
+        single contact has no wrench QP)."""
+        self.native_calls = self.qp_calls_of(tick)
 
-    def qp_calls_of(self, tick: Any, old: Sequence[QpCall]) -> list[QpCall]:
-        """The tick's QPs, each with its handle: ``old``'s call where it has the same handle."""
+    def qp_calls_of(self, tick: Any) -> list[QpCall]:
+        """The tick's QPs, each with its handle: a QP keeps the call of its name (kept also
+        while the QP is absent, e.g. the wrench QP in single support), and with it its C++
+        solver, as long as the same handle solves it."""
         L = len(self.levels)
         names = [f"T{i + 1}" for i in range(L)] + ["wrench"]
         solvers = [*self.solvers, self.final_solver]
         calls: list[QpCall] = []
         for i in range(tick.n_qps):
             name, handle = names[min(i, L)], solvers[min(i, L)]
-            if i < len(old) and old[i].handle is handle and old[i].problem.name == name:
-                old[i].buffers = tick.qp(i)
-                old[i].rebind()
-                calls.append(old[i])
+            call = self._calls.get(name)
+            if call is not None and call.handle is handle:
+                call.buffers = tick.qp(i)
+                call.rebind()
             else:
-                calls.append(QpCall(tick.qp(i), name, handle, self.config.solver_calls))
+                call = self._calls[name] = QpCall(
+                    tick.qp(i), name, handle, self.config.solver_calls
+                )
+            calls.append(call)
         return calls
 
     def native_region(

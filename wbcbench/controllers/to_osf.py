@@ -30,6 +30,7 @@ async``). This module also holds what both OSF controllers share (:class:`OsfCon
 
 from __future__ import annotations
 
+from itertools import pairwise
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -57,6 +58,7 @@ from wbcbench.tasks.contacts import (
     tile_wrench_weights,
 )
 from wbcbench.tasks.osf import OsfModel, OsfParams, group_levels, level_kinds
+from wbcbench.tasks.schedule import ContactSchedule
 from wbcbench.tasks.tasks import Task, TaskTerm
 
 
@@ -184,6 +186,22 @@ class OsfControllerBase(NativeController):
 
     def wrench_weighting(self) -> None:
         """The controller's wrench weighting for the current contact set (none here)."""
+
+    def start(self, state: RobotState) -> None:
+        super().start(state)
+        if self.impl == "native" and self.ctx.schedule is not None and -1 in self.active_contacts:
+            self.prepare_contact_sets(self.ctx.schedule)
+
+    def prepare_contact_sets(self, schedule: ContactSchedule) -> None:
+        """Before the first tick of a native run: what each contact set of the schedule fixes
+        (its wrench rows, levels, model, wrench weighting and native settings), so that the
+        tick a set first becomes active re-makes none of it, as a change back to a known set
+        does not. The first tick then selects its set as before (none is held)."""
+        for t in scheduled_instants(schedule):
+            self.select_contacts(t)
+            if self.active_contacts not in self._tick_settings:
+                self._tick_settings[self.active_contacts] = self.tick_settings()
+        self.active_contacts = (-1,)
 
     # -- the native tick ----------------------------------------------------------------------
 
@@ -358,6 +376,16 @@ class OsfControllerBase(NativeController):
             diagnostics=self.base_diagnostics(read),
             problems=problems if self.ctx.keep_problems else [],
         )
+
+
+def scheduled_instants(schedule: ContactSchedule) -> list[float]:
+    """An instant [s] inside each stretch of time between two of the schedule's interval ends
+    (touchdowns as scheduled), the last one after them all: every contact set it holds."""
+    ends = {0.0} | {
+        x for c in schedule.contacts for interval in c.intervals for x in interval if x < np.inf
+    }
+    times = sorted(ends)
+    return [(a + b) / 2 for a, b in pairwise(times)] + [times[-1] + 1.0]
 
 
 #: why a tick with ``internal: basis`` failed when G's first contact block is singular
