@@ -218,7 +218,10 @@ def test_native_osf_prepares_every_contact_set_before_the_walk(
     that no tick of the walk makes any (the first tick still selects its set)."""
     native = controller(name, "daqp", {"impl": "native"})
     native.start(RobotState(tocabi, *walk_states[0.0]))
+    # left as it was made: every contact, none selected yet
     assert native.active_contacts == (-1,)
+    assert (native.nc, native.frames) == (12, ["l_sole", "r_sole"])
+    assert native.level_tasks == native.tick_order
     prepared = dict(native._tick_settings)
     assert {(0, 1), (0,), (1,)} <= set(prepared)
     for t in TIMES:

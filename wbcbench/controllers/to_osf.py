@@ -196,12 +196,17 @@ class OsfControllerBase(NativeController):
         """Before the first tick of a native run: what each contact set of the schedule fixes
         (its wrench rows, levels, model, wrench weighting and native settings), so that the
         tick a set first becomes active re-makes none of it, as a change back to a known set
-        does not. The first tick then selects its set as before (none is held)."""
+        does not. The controller is left as it was (every contact, none selected yet): its
+        first tick selects its set as before."""
+        held = ("frames", "contacts", "Cw", "lw", "uw", "nc", "active_tasks", "active_contacts")
+        before = {a: getattr(self, a) for a in (*held, *self.set_attrs)}
         for t in scheduled_instants(schedule):
             self.select_contacts(t)
             if self.active_contacts not in self._tick_settings:
                 self._tick_settings[self.active_contacts] = self.tick_settings()
-        self.active_contacts = (-1,)
+        self.__dict__.update(before)
+        self.server.close()
+        self.server = ParameterServer(self.model, self.config.params, self.ctx.robot)
 
     # -- the native tick ----------------------------------------------------------------------
 
