@@ -139,16 +139,16 @@ def test_walk_touchdown_velocity_is_a_downward_speed(
 
 def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule() -> None:
     with pytest.raises(WbcBenchError) as exc:
-        plan_run(WALK, "to_osf", "daqp", config={"impl": "native"})
+        plan_run(WALK, "rc_lqp", "daqp", config={"impl": "native"})
     assert str(exc.value) == (
-        f"{WALK}: to_osf: the native tick holds a fixed contact set and this scenario's contacts "
+        f"{WALK}: rc_lqp: the native tick holds a fixed contact set and this scenario's contacts "
         "change (a contact schedule or a walk); run the Python reference: impl python (--set "
-        "controllers.to_osf.impl=python, or controllers: {to_osf: {impl: python}} in the "
+        "controllers.rc_lqp.impl=python, or controllers: {rc_lqp: {impl: python}} in the "
         "scenario)"
     )
 
 
-@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp"])
+@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp", "to_osf", "osf_hqp"])
 def test_native_tick_that_follows_a_schedule_is_planned(controller: str) -> None:
     run = plan_run(WALK, controller, "daqp", config={"impl": "native"})
     assert run.impl == "native"
@@ -159,8 +159,9 @@ def test_a_sweep_runs_native_only_the_ticks_that_follow_a_schedule() -> None:
 
     impls = ["native", "python"]
     assert _impl_configs(impls, "qp_wbc", scheduled=True) == [{"impl": i} for i in impls]
-    assert _impl_configs(impls, "to_osf", scheduled=True) == [{"impl": "python"}]
-    assert _impl_configs(impls, "to_osf", scheduled=False) == [{"impl": i} for i in impls]
+    assert _impl_configs(impls, "to_osf", scheduled=True) == [{"impl": i} for i in impls]
+    assert _impl_configs(impls, "rc_lqp", scheduled=True) == [{"impl": "python"}]
+    assert _impl_configs(impls, "rc_lqp", scheduled=False) == [{"impl": i} for i in impls]
 
 
 # -- the schedule at run time

@@ -1,5 +1,6 @@
 """A short walk in closed loop: the feet lift off and land on schedule and the run ends ok (the
-weighted QP in both impls, the native ticks of the hierarchies that follow a contact set); a
+weighted QP in both impls, the native ticks of the hierarchies and the OSF controllers, which
+follow a contact set); a
 touchdown the simulated foot never confirms ends the run with a message naming it."""
 
 from __future__ import annotations
@@ -40,8 +41,16 @@ G1_SHORT = [
 ]
 MISSING = {name: dist for name, dist in third_party_robots().items() if dist}
 
-#: (controller, impl): the weighted QP in both impls, the hierarchies natively
-WALKERS = [("qp_wbc", "python"), ("qp_wbc", "native"), ("hqp", "native"), ("lqp", "native")]
+#: (controller, impl): the weighted QP in both impls, the hierarchies and the OSF controllers
+#: natively
+WALKERS = [
+    ("qp_wbc", "python"),
+    ("qp_wbc", "native"),
+    ("hqp", "native"),
+    ("lqp", "native"),
+    ("to_osf", "native"),
+    ("osf_hqp", "native"),
+]
 
 
 @pytest.mark.parametrize(("controller", "impl"), WALKERS)
