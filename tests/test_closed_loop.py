@@ -168,3 +168,16 @@ def test_run_log_pads_columns_a_tick_does_not_report() -> None:
     assert {k: len(v) for k, v in arrays.items()} == {"t": 3, "diag.a": 3, "diag.b": 3}
     np.testing.assert_array_equal(arrays["diag.a"], [1.0, np.nan, np.nan])
     np.testing.assert_array_equal(arrays["diag.b"], [np.nan, np.nan, 2.0])
+
+
+def test_cross3_is_the_cross_product() -> None:
+    from wbcbench.sim.closed_loop import cross3
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        a, b = rng.normal(size=3) * 10.0 ** rng.integers(-3, 4), rng.normal(size=3)
+        np.testing.assert_allclose(
+            cross3(a, b), np.cross(a, b), rtol=0, atol=1e-14 * np.abs(a).max()
+        )
+    e = np.eye(3)
+    np.testing.assert_array_equal(cross3(e[0], e[1]), e[2])

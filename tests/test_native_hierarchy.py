@@ -422,7 +422,6 @@ def test_native_solver_calls_equal_python_calls(
     solver: str,
     case: str,
     mode: str,
-    request: pytest.FixtureRequest,
 ) -> None:
     """The native tick with its level QPs solved from C++ (``solver_calls: native``, the
     default; the comparisons above keep their problems, which sends every solve through Python)
@@ -433,27 +432,19 @@ def test_native_solver_calls_equal_python_calls(
     on these states): the slacks agree as between the two impls above, the C++ answer meets the
     floating-base rows and the torque limits, and τ, q̈, f agree to 10 times the strategies'
     spread or 1e-6 (measured: at most 1.2e-7 where the spread is smaller, 1.1e-4 where it is
-    1.3e-3)."""
+    1.3e-3). Where one impl's backend fails a level that the other's solves (seen: the C++
+    qpOASES's hot start on lqp's nullspace level p2 of one double-support state stopped on
+    "Abnormal termination due to Cholesky factorisation" under OPENBLAS_CORETYPE=Prescott, whose
+    rounding changes the random states, while CasADi's solved it), only that impl solves the
+    level again with the proximal term, whose optimum is another (that slack 1.8e-3 against
+    3e-10; quadprog, DAQP and CasADi's qpOASES find the same optimum of that regularised QP to
+    a relative KKT residual of 1e-14): the answers then only meet the hard rows, and are not
+    compared. At most one state of four may be such."""
     from wbcbench.controllers.registry import make_controller
     from wbcbench.robots.loader import load_robot
     from wbcbench.runs import scenario_context
     from wbcbench.scenarios.load import load_scenario
 
-    if (name, solver, case, mode, config.get("strategy")) == (
-        "lqp",
-        "qpoases",
-        "double",
-        "hot",
-        "nullspace",
-    ):
-        request.applymarker(
-            pytest.mark.xfail(
-                reason="under some BLAS kernels (OPENBLAS_CORETYPE=Prescott) the C++-called "
-                "qpOASES returns level p2 of one state with slack 1.8e-3 where the Python call "
-                "and the cascade strategy find 3e-10, both reported solved: an open defect",
-                strict=False,
-            )
-        )
     scenario, keyframe = CASES[case]
     loaded = load_scenario(scenario)
     robot = load_robot(loaded.spec.robot)
@@ -472,7 +463,7 @@ def test_native_solver_calls_equal_python_calls(
     window = loaded.spec.metrics.window or (0.0, loaded.spec.duration)
     same_code = solver == "osqp"
     compared: list[float] = []
-    spread, mismatched, spread_known = 0.0, 0, False
+    spread, mismatched, regularised, spread_known = 0.0, 0, 0, False
     for _ in range(4):
         q, v = grounded_state(robot, keyframe, cpp.ctx.contact_frames, rng, 0.05, 0.2)
         t = float(rng.uniform(*window))
@@ -491,6 +482,13 @@ def test_native_solver_calls_equal_python_calls(
             continue
         if not b.ok:
             continue
+        assert base_residual(robot, q, v, a, cpp.ctx.contact_frames) <= 1e-6
+        assert np.all(np.abs(a.tau) <= cpp.ctx.tau_max * (1 + 1e-6) + 1e-6)
+        if a.diagnostics["prox_retries"] != b.diagnostics["prox_retries"]:
+            # one impl's backend failed a level the other's solved, so only that impl solved
+            # it again with the proximal term: the impls solved different problems
+            regularised += 1
+            continue
         c = spread_ref.step(RobotState(robot, q, v), t)
         for key, value in slacks(b.diagnostics).items():
             # as between the two impls above: 3e-6, or 10 times the two Python strategies'
@@ -499,13 +497,12 @@ def test_native_solver_calls_equal_python_calls(
             if c.ok and key in c.diagnostics:
                 tol = max(tol, 10 * abs(c.diagnostics[key] - value))
             assert abs(a.diagnostics[key] - value) <= tol, (key, a.diagnostics[key], value, tol)
-        assert base_residual(robot, q, v, a, cpp.ctx.contact_frames) <= 1e-6
-        assert np.all(np.abs(a.tau) <= cpp.ctx.tau_max * (1 + 1e-6) + 1e-6)
         if c.ok:
             spread_known = True
             spread = max(spread, relative(c.tau, b.tau), relative(c.qdd, b.qdd))
         pairs = zip((a.tau, a.qdd, a.wrench), (b.tau, b.qdd, b.wrench), strict=True)
         compared.append(max(relative(x, y) for x, y in pairs))
+    assert regularised <= 1, regularised
     if spread_known:
         for diff in compared:
             assert diff <= max(1e-6, 10 * spread), (diff, spread)

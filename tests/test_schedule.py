@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
+from wbcbench.controllers.rc_lqp import RcLqp
 from wbcbench.errors import ScenarioError, WbcBenchError
 from wbcbench.runs import plan_run
 from wbcbench.scenarios.load import SCENARIO_DIR, load_scenario
@@ -122,18 +123,37 @@ def test_walk_steps_or_footsteps(tmp_path: Path) -> None:
     )
 
 
-def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule() -> None:
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        (-0.05, "Input should be greater than or equal to 0"),
+        (1.5, "Input should be less than or equal to 1"),
+    ],
+)
+def test_walk_touchdown_velocity_is_a_downward_speed(
+    tmp_path: Path, value: float, message: str
+) -> None:
+    raw = raw_of(WALK)
+    raw["walk"]["touchdown_velocity"] = value
+    assert error_of(tmp_path, raw) == f"walk.touchdown_velocity: {message}"
+
+
+def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # every built-in native tick follows the contacts: one that would not, as a plugin's may
+    monkeypatch.setattr(RcLqp, "native_schedule", False)
     with pytest.raises(WbcBenchError) as exc:
-        plan_run(WALK, "to_osf", "daqp", config={"impl": "native"})
+        plan_run(WALK, "rc_lqp", "daqp", config={"impl": "native"})
     assert str(exc.value) == (
-        f"{WALK}: to_osf: the native tick holds a fixed contact set and this scenario's contacts "
+        f"{WALK}: rc_lqp: the native tick holds a fixed contact set and this scenario's contacts "
         "change (a contact schedule or a walk); run the Python reference: impl python (--set "
-        "controllers.to_osf.impl=python, or controllers: {to_osf: {impl: python}} in the "
+        "controllers.rc_lqp.impl=python, or controllers: {rc_lqp: {impl: python}} in the "
         "scenario)"
     )
 
 
-@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp", "rc_lqp"])
+@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp", "to_osf", "osf_hqp", "rc_lqp"])
 def test_native_tick_that_follows_a_schedule_is_planned(controller: str) -> None:
     run = plan_run(WALK, controller, "daqp", config={"impl": "native"})
     assert run.impl == "native"
@@ -150,13 +170,18 @@ def test_a_walk_uses_three_contact_sets() -> None:
     assert schedule.contact_sets() == [tuple(sorted((left, right))), first, other]
 
 
-def test_a_sweep_runs_native_only_the_ticks_that_follow_a_schedule() -> None:
+def test_a_sweep_runs_native_only_the_ticks_that_follow_a_schedule(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     from wbcbench.bench.sweep import _impl_configs
 
     impls = ["native", "python"]
     assert _impl_configs(impls, "qp_wbc", scheduled=True) == [{"impl": i} for i in impls]
-    assert _impl_configs(impls, "to_osf", scheduled=True) == [{"impl": "python"}]
-    assert _impl_configs(impls, "to_osf", scheduled=False) == [{"impl": i} for i in impls]
+    assert _impl_configs(impls, "to_osf", scheduled=True) == [{"impl": i} for i in impls]
+    assert _impl_configs(impls, "rc_lqp", scheduled=True) == [{"impl": i} for i in impls]
+    monkeypatch.setattr(RcLqp, "native_schedule", False)  # a tick of a fixed contact set
+    assert _impl_configs(impls, "rc_lqp", scheduled=True) == [{"impl": "python"}]
+    assert _impl_configs(impls, "rc_lqp", scheduled=False) == [{"impl": i} for i in impls]
 
 
 # -- the schedule at run time
@@ -175,8 +200,13 @@ def test_phases_and_ramps() -> None:
     assert ramp.active == (0, 1)
     assert ramp.lower[0] == pytest.approx(0.5) and ramp.upper[0] == pytest.approx(0.5)
     assert s.phase(1.0).active == (1,)  # lifted off
-    assert s.phase(2.05).lower[0] == pytest.approx(0.5)  # f_min ramps in after touchdown
-    assert s.phase(2.05).upper[0] == 1.0
+    # after touchdown f_min ramps in from 0, the upper bound from the confirming load
+    # (20 N of the 500 N ramp force) to the full bound, as they ramp out before lift-off
+    rise = 20.0 / 500.0
+    assert s.phase(2.0).lower[0] == 0.0 and s.phase(2.0).upper[0] == pytest.approx(rise)
+    assert s.phase(2.05).lower[0] == pytest.approx(0.5)
+    assert s.phase(2.05).upper[0] == pytest.approx(rise + (1 - rise) * 0.5)
+    assert s.phase(2.1).lower[0] == 1.0 and s.phase(2.1).upper[0] == 1.0
     # the bounds written for the ramp: f_min and min(f_max, weight) scaled
     lw, uw = np.array([10.0, -np.inf]), np.array([np.inf, 0.0])
     out_l, out_u = np.empty(2), np.empty(2)
@@ -212,7 +242,8 @@ def test_landing_off_target() -> None:
 
 
 def test_walk_expands_into_schedule_tasks_and_plan() -> None:
-    run = plan_run(WALK, "qp_wbc", "daqp", overrides=["walk.steps=2", "duration=4.7"])
+    overrides = ["walk.steps=2", "duration=4.7", "walk.touchdown_velocity=0.05"]
+    run = plan_run(WALK, "qp_wbc", "daqp", overrides=overrides)
     ctx = run.context()
     assert ctx.schedule is not None and ctx.schedule.plan is not None
     names = [t.name for t in ctx.tasks]
@@ -226,6 +257,9 @@ def test_walk_expands_into_schedule_tasks_and_plan() -> None:
     # the swing task's offset lands the foot on its footstep
     swing = next(t for t in ctx.tasks if t.name == "swing.l_sole")
     step = plan.swings[0]
-    offset, _, _ = swing.reference.sample(step.touch_down)  # type: ignore[union-attr]
+    offset, rate, _ = swing.reference.sample(step.touch_down)  # type: ignore[union-attr]
     start = next(f for f in plan.footsteps if f.foot == "l_sole" and f.is_initial)
     assert np.allclose(offset[:3], np.array(step.position) - start.position)
+    # … moving straight down at walk.touchdown_velocity
+    assert plan.timing.touchdown_velocity == 0.05
+    assert np.allclose(rate, [0.0, 0.0, -0.05, 0.0, 0.0, 0.0])

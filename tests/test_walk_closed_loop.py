@@ -1,5 +1,6 @@
 """A short walk in closed loop: the feet lift off and land on schedule and the run ends ok (the
-weighted QP in both impls, the native ticks of the hierarchies that follow a contact set); a
+weighted QP in both impls, the native ticks of the hierarchies and the OSF controllers, which
+follow a contact set); a
 touchdown the simulated foot never confirms ends the run with a message naming it."""
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ import pinocchio as pin
 import pytest
 
 from wbcbench import _native
+from wbcbench.robots.loader import third_party_robots
 from wbcbench.runs import plan_run
 from wbcbench.sim.closed_loop import run_closed_loop
 
@@ -27,12 +29,27 @@ SHORT = [
 ]
 
 
-#: (controller, impl): the weighted QP in both impls, the hierarchies natively
+#: two steps of G1's own timing at 500 Hz, shorter holds: touchdowns at 1.6 and 2.6 s
+G1_SHORT = [
+    "walk.steps=2",
+    "walk.start=0.6",
+    "walk.end=0.5",
+    "initial.settle=0.2",
+    "duration=3.3",
+    "control_rate=500",
+    "metrics.window=[0, 3.3]",
+]
+MISSING = {name: dist for name, dist in third_party_robots().items() if dist}
+
+#: (controller, impl): the weighted QP in both impls, the hierarchies and the OSF controllers
+#: natively
 WALKERS = [
     ("qp_wbc", "python"),
     ("qp_wbc", "native"),
     ("hqp", "native"),
     ("lqp", "native"),
+    ("to_osf", "native"),
+    ("osf_hqp", "native"),
     ("rc_lqp", "native"),
 ]
 
@@ -70,6 +87,29 @@ def test_a_touchdown_that_never_happens_ends_the_run() -> None:
         "the touchdown of contact 'l_sole' scheduled at t = 0.900 s did not happen: its foot "
         "carried less than 5000 N until t = 0.952 s (sim.touchdown_tolerance = 0.05 s)"
     ), result.message
+
+
+def test_a_foot_that_lands_at_rest_on_the_floor_never_carries_load() -> None:
+    # G1 starts grounded: its soles' frames are at the floor's surface, and so are its
+    # footsteps; a swing that comes to rest there touches without pressing. Landing at
+    # walk.touchdown_velocity (the scenario's 0.05 m/s) presses the foot on the floor at its
+    # touchdown time.
+    if "g1" in MISSING:
+        pytest.skip(f"g1: {MISSING['g1']} is not installed (wbcbench[robots])")
+    at_rest = [*G1_SHORT, "walk.touchdown_velocity=0"]
+    result = run_closed_loop(plan_run("g1_walk", "qp_wbc", "daqp", overrides=at_rest))
+    assert result.status == "failed"
+    assert result.message.startswith(
+        "the touchdown of contact 'l_sole' scheduled at t = 1.600 s did not happen"
+    ), result.message
+    moving = run_closed_loop(plan_run("g1_walk", "qp_wbc", "daqp", overrides=G1_SHORT))
+    assert moving.status == "ok", moving.message
+    log = moving.log.arrays()
+    assert log["touchdowns"][-1] == 2
+    landings = moving.walk["landings"] if moving.walk else []
+    # each foot lands within a tick of its touchdown time, within 1 mm of its footstep
+    assert [round(landing["t"], 3) for landing in landings] == [1.602, 2.602]
+    assert max(landing["error"] for landing in landings) < 1e-3
 
 
 def test_a_stored_walk_has_its_metrics_table_and_figure(tmp_path) -> None:

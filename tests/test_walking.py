@@ -14,6 +14,7 @@ import pytest
 from wbcbench.report.walking import walk_figure, walk_phase_figure
 from wbcbench.tasks.walking import (
     Footstep,
+    SwingTrajectory,
     WalkPlan,
     WalkTiming,
     footsteps_from_walk,
@@ -118,6 +119,48 @@ def test_swings_leave_and_land_at_rest_on_their_footsteps_at_the_stated_height()
         np.testing.assert_array_equal(whole[0], swing.sample(mid)[0])
 
 
+def test_a_swing_with_a_touchdown_velocity_lands_moving_down_and_searches_after() -> None:
+    v = 0.05
+    plan = walk(0.2, timing=WalkTiming(touchdown_velocity=v))
+    for step in plan.swings:
+        swing = plan.swing_trajectory(step)
+        x0, dx0, ddx0 = swing.sample(step.lift_off)
+        x1, dx1, ddx1 = swing.sample(step.touch_down)
+        np.testing.assert_allclose(x0, [*swing.start.position, swing.start.yaw], atol=1e-12)
+        np.testing.assert_allclose(x1, [*step.position, step.yaw], atol=1e-12)
+        for a in (dx0, ddx0, ddx1):
+            np.testing.assert_allclose(a, 0.0, atol=1e-12)
+        # it reaches its footstep moving straight down at v
+        np.testing.assert_allclose(dx1, [0.0, 0.0, -v, 0.0], atol=1e-12)
+        # the landing term keeps the foot above the path it would take landing at rest
+        for s in np.linspace(0.01, 0.99, 25):
+            t = step.lift_off + s * (step.touch_down - step.lift_off)
+            at_rest = SwingTrajectory(swing.start, step, plan.timing.swing_height).sample(t)
+            assert swing.sample(t)[0][2] > at_rest[0][2]
+        # its derivatives are those of its path (central differences)
+        h = 1e-6
+        for t in np.linspace(step.lift_off + 0.01, step.touch_down - 0.01, 7):
+            (xa, _, _), (xb, _, _) = swing.sample(t - h), swing.sample(t + h)
+            x, dx, ddx = swing.sample(t)
+            np.testing.assert_allclose(dx, (xb - xa) / (2 * h), atol=1e-7)
+            (_, da, _), (_, db, _) = swing.sample(t - h), swing.sample(t + h)
+            np.testing.assert_allclose(ddx, (db - da) / (2 * h), atol=1e-5)
+        # past its touchdown time it goes on down at v for `double` seconds, then holds
+        foot = plan.foot_trajectory(step.foot)
+        late = step.touch_down + 0.03
+        x, dx, ddx = foot.sample(late)
+        np.testing.assert_allclose(x[[0, 1, 3]], np.array([*step.position, step.yaw])[[0, 1, 3]])
+        assert x[2] == pytest.approx(step.position[2] - v * 0.03, abs=1e-12)
+        np.testing.assert_allclose(dx, [0.0, 0.0, -v, 0.0], atol=1e-12)
+        np.testing.assert_allclose(ddx, 0.0, atol=1e-12)
+        after = swing.sample(step.touch_down + plan.timing.double + 0.01)
+        assert after[0][2] == pytest.approx(step.position[2] - v * plan.timing.double)
+        np.testing.assert_allclose(after[1], 0.0, atol=1e-12)
+    # the timing reads back from plain data
+    back = WalkPlan.from_dict(json.loads(json.dumps(plan.to_dict())))
+    assert back.timing.touchdown_velocity == v
+
+
 def test_footsteps_of_a_straight_and_a_turning_walk() -> None:
     straight = footsteps_from_walk(START, "l_sole", 5, 0.25)
     assert [f for f, _, _ in straight] == ["l_sole", "r_sole", "l_sole", "r_sole", "l_sole"]
@@ -153,6 +196,10 @@ def test_the_plan_reads_back_from_plain_data() -> None:
         ),
         (lambda: WalkTiming(unload=0.5, double=0.2), "unload must be > 0 and at most double"),
         (lambda: WalkTiming(single=0.0), "single must be > 0 s"),
+        (
+            lambda: WalkTiming(touchdown_velocity=-0.1),
+            "touchdown_velocity must be ≥ 0 m/s \\(a downward speed\\), got -0.1",
+        ),
     ],
 )
 def test_bad_walks_say_what_is_wrong(make: object, message: str) -> None:

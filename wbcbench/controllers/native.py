@@ -503,6 +503,12 @@ class NativeController(Controller):
         """The QPs the tick hands to Python one at a time, each with its solver handle."""
         return []
 
+    def rebind_calls(self, tick: Any) -> None:
+        """After :meth:`configure_tick` for a new contact set: re-make the Problem views of the
+        QPs it re-sized (here: the same QPs, new buffers)."""
+        for call in self.native_calls:
+            call.rebind()
+
     def level_solve(self, tick: Any) -> LevelSolve | None:
         """The callback through which a tick that runs a whole hierarchy solves its levels."""
         return None
@@ -571,8 +577,7 @@ class NativeController(Controller):
         if self.active_contacts != self.tick_contacts:
             tick.select_contacts(list(self.active_contacts))
             self.configure_tick(tick)
-            for call in self.native_calls:
-                call.rebind()
+            self.rebind_calls(tick)
             self.tick_contacts = self.active_contacts
             self.sampled_tasks = self.held_sampled(self.tick_tasks())
         tick.set_wrench_bounds(self.lw, self.uw)

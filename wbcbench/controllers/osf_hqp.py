@@ -69,6 +69,8 @@ class OsfHqp(OsfControllerBase):
         #: how many of the native tick's QPs the last tick reached
         self.reached = 0
 
+    set_attrs = (*OsfControllerBase.set_attrs, "WtW")
+
     def wrench_weighting(self) -> None:
         # a level per solver handle, also when a contact set's tasks form more levels
         solvers = getattr(self, "solvers", None)
@@ -94,11 +96,34 @@ class OsfHqp(OsfControllerBase):
 
     def qp_calls(self, tick: Any) -> list[QpCall]:
         """One QP per level, then the wrench QP where there is a distribution space."""
+        self._calls: dict[str, QpCall] = {}  # a new tick: new calls
+        return self.qp_calls_of(tick)
+
+    def rebind_calls(self, tick: Any) -> None:
+        """A new contact set's QPs (the tick makes them anew: a level may have left, and a
+        single contact has no wrench QP)."""
+        self.native_calls = self.qp_calls_of(tick)
+
+    def qp_calls_of(self, tick: Any) -> list[QpCall]:
+        """The tick's QPs, each with its handle: a QP keeps the call of its name (kept also
+        while the QP is absent, e.g. the wrench QP in single support), and with it its C++
+        solver, as long as the same handle solves it."""
         L = len(self.levels)
         names = [f"T{i + 1}" for i in range(L)] + ["wrench"]
         solvers = [*self.solvers, self.final_solver]
-        calls = self.config.solver_calls
-        return [QpCall(tick.qp(i), names[i], solvers[min(i, L)], calls) for i in range(tick.n_qps)]
+        calls: list[QpCall] = []
+        for i in range(tick.n_qps):
+            name, handle = names[min(i, L)], solvers[min(i, L)]
+            call = self._calls.get(name)
+            if call is not None and call.handle is handle:
+                call.buffers = tick.qp(i)
+                call.rebind()
+            else:
+                call = self._calls[name] = QpCall(
+                    tick.qp(i), name, handle, self.config.solver_calls
+                )
+            calls.append(call)
+        return calls
 
     def native_region(
         self, q: np.ndarray, v: np.ndarray, t: float, timer: NativeTimer

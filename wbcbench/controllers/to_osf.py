@@ -30,6 +30,7 @@ async``). This module also holds what both OSF controllers share (:class:`OsfCon
 
 from __future__ import annotations
 
+from itertools import pairwise
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -57,6 +58,7 @@ from wbcbench.tasks.contacts import (
     tile_wrench_weights,
 )
 from wbcbench.tasks.osf import OsfModel, OsfParams, group_levels, level_kinds
+from wbcbench.tasks.schedule import ContactSchedule
 from wbcbench.tasks.tasks import Task, TaskTerm
 
 
@@ -107,6 +109,9 @@ class OsfControllerBase(NativeController):
 
     config: OsfBaseConfig
     affine: bool = False
+    native_schedule = True
+    #: what a contact set fixes (:meth:`contacts_changed`), kept per set after its first tick
+    set_attrs: ClassVar[tuple[str, ...]] = ("levels", "kinds", "acc_bound", "level_tasks", "model")
     #: the native settings' type name in the module
     settings_type: ClassVar[str] = ""
 
@@ -115,6 +120,11 @@ class OsfControllerBase(NativeController):
         cfg = self.config
         self.frames = ctx.contact_frames
         self.group_tasks(ctx.tasks)
+        #: every task in level order: the native tick's tasks, of which the levels of a contact
+        #: set pick the active ones (a subsequence: the same order)
+        self.tick_order = list(self.level_tasks)
+        self._per_set: dict[tuple[int, ...], dict[str, Any]] = {}
+        self._tick_settings: dict[tuple[int, ...], Any] = {}
         self.model = self.osf_model()
         if ctx.schedule is not None and parse_params_mode(cfg.params).kind == "async":
             raise ControllerError(
@@ -159,16 +169,44 @@ class OsfControllerBase(NativeController):
         self.level_tasks = [task for tasks in self.levels for task in tasks]
 
     def contacts_changed(self) -> None:
-        """The OSF model and a fresh parameter server for the new contact set: the parameters
-        of the old set are never used (a periodic server computes its first set at once)."""
+        """The levels, OSF model and wrench weighting of the new contact set (made on its first
+        tick and kept: they depend on the set alone) and a fresh parameter server: the
+        parameters of the old set are never used (a periodic server computes its first set at
+        once)."""
         self.server.close()
-        self.group_tasks(self.active_tasks)
-        self.model = self.osf_model()
+        kept = self._per_set.get(self.active_contacts)
+        if kept is None:
+            self.group_tasks(self.active_tasks)
+            self.model = self.osf_model()
+            self.wrench_weighting()
+            self._per_set[self.active_contacts] = {a: getattr(self, a) for a in self.set_attrs}
+        else:
+            self.__dict__.update(kept)
         self.server = ParameterServer(self.model, self.config.params, self.ctx.robot)
-        self.wrench_weighting()
 
     def wrench_weighting(self) -> None:
         """The controller's wrench weighting for the current contact set (none here)."""
+
+    def start(self, state: RobotState) -> None:
+        super().start(state)
+        if self.impl == "native" and self.ctx.schedule is not None and -1 in self.active_contacts:
+            self.prepare_contact_sets(self.ctx.schedule)
+
+    def prepare_contact_sets(self, schedule: ContactSchedule) -> None:
+        """Before the first tick of a native run: what each contact set of the schedule fixes
+        (its wrench rows, levels, model, wrench weighting and native settings), so that the
+        tick a set first becomes active re-makes none of it, as a change back to a known set
+        does not. The controller is left as it was (every contact, none selected yet): its
+        first tick selects its set as before."""
+        held = ("frames", "contacts", "Cw", "lw", "uw", "nc", "active_tasks", "active_contacts")
+        before = {a: getattr(self, a) for a in (*held, *self.set_attrs)}
+        for t in scheduled_instants(schedule):
+            self.select_contacts(t)
+            if self.active_contacts not in self._tick_settings:
+                self._tick_settings[self.active_contacts] = self.tick_settings()
+        self.__dict__.update(before)
+        self.server.close()
+        self.server = ParameterServer(self.model, self.config.params, self.ctx.robot)
 
     # -- the native tick ----------------------------------------------------------------------
 
@@ -177,12 +215,23 @@ class OsfControllerBase(NativeController):
         by :meth:`configure_tick`)."""
 
     def tick_tasks(self) -> list[Task]:
-        return self.level_tasks
+        return self.tick_order
 
     def configure_tick(self, tick: Any) -> None:
+        """The settings of the contact set (made on its first tick and kept; the ramped wrench
+        bounds follow every tick, ``set_wrench_bounds``) to the tick."""
+        s = self._tick_settings.get(self.active_contacts)
+        if s is None:
+            s = self._tick_settings[self.active_contacts] = self.tick_settings()
+        tick.configure(s)
+
+    def tick_settings(self) -> Any:
+        """The native settings of the present contact set."""
         cfg = self.config
         s = getattr(_native.core(), self.settings_type)()
         self.native_settings(s)
+        index = {id(task): i for i, task in enumerate(self.tick_order)}
+        s.tasks = [index[id(task)] for task in self.level_tasks]
         s.level_dims = [sum(t.dim for t in tasks) for tasks in self.levels]
         s.force_level = [kind == "force" for kind in self.kinds]
         s.inverse = cfg.inverse
@@ -192,7 +241,7 @@ class OsfControllerBase(NativeController):
         s.asynchronous = self.server.mode.kind == "async"
         set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
         s.acc_bound = np.concatenate(self.acc_bound or [np.zeros(0)])
-        tick.configure(s)
+        return s
 
     def osf_diagnostics(
         self, state: RobotState, terms: list[TaskTerm], ok: bool, own: dict[str, float]
@@ -334,6 +383,16 @@ class OsfControllerBase(NativeController):
         )
 
 
+def scheduled_instants(schedule: ContactSchedule) -> list[float]:
+    """An instant [s] inside each stretch of time between two of the schedule's interval ends
+    (touchdowns as scheduled), the last one after them all: every contact set it holds."""
+    ends = {0.0} | {
+        x for c in schedule.contacts for interval in c.intervals for x in interval if x < np.inf
+    }
+    times = sorted(ends)
+    return [(a + b) / 2 for a, b in pairwise(times)] + [times[-1] + 1.0]
+
+
 #: why a tick with ``internal: basis`` failed when G's first contact block is singular
 SINGULAR_BASIS = "to_osf: the grasp map's first contact block is singular; use internal: constraint"
 
@@ -421,6 +480,8 @@ class ToOsf(OsfControllerBase):
         self.solver = ctx.new_solver()
         self.wrench_weighting()
 
+    set_attrs = (*OsfControllerBase.set_attrs, "Sf")
+
     def wrench_weighting(self) -> None:
         self.Sf = wrench_selection(self.config.wrench_weights, self.contacts, self.name)
 
@@ -456,11 +517,11 @@ class ToOsf(OsfControllerBase):
         own: dict[str, float] = {}
         tick = self.native_tick
         if ok:
-            amend = tick.rho - tick.tasks.acc_ref
-            tasks = tick.tasks
-            for i, task in enumerate(self.level_tasks):
-                rows = slice(tasks.offset(i), tasks.offset(i) + tasks.dim(i))
-                own[f"amend.{task.name}"] = float(np.linalg.norm(amend[rows]))
+            amend = tick.rho - tick.level_ref
+            pos = 0
+            for task in self.level_tasks:
+                own[f"amend.{task.name}"] = float(np.linalg.norm(amend[pos : pos + task.dim]))
+                pos += task.dim
         return self.osf_diagnostics(state, terms, ok, own)
 
     def step(self, state: RobotState, t: float) -> ControlOutput:

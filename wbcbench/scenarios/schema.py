@@ -566,6 +566,13 @@ class WalkSpec(Strict):
     end: float = Field(1.5, gt=0, le=60, description="double support after the last step [s]")
     unload: float = Field(0.1, gt=0, description="lift-off ramp [s], at most double")
     swing_height: float = Field(0.05, ge=0, le=0.5, description="swing clearance [m]")
+    touchdown_velocity: float = Field(
+        0.0,
+        ge=0,
+        le=1,
+        description="the swing foot's downward speed at its footstep, kept past the touchdown "
+        "time until the contact carries load [m/s]",
+    )
     com_task: str = Field("com", description="the com task the CoM reference drives")
     heading_tasks: list[str] = Field(
         default_factory=list,

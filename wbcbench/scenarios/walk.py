@@ -41,6 +41,7 @@ def walk_timing(walk: WalkSpec) -> WalkTiming:
         end=walk.end,
         unload=walk.unload,
         swing_height=walk.swing_height,
+        touchdown_velocity=walk.touchdown_velocity,
     )
 
 

@@ -151,10 +151,19 @@ class ContactSensor:
                 if b1 in group:
                     force, torque = -force, -torque
                 p, R = poses[i]
-                moment = torque + np.cross(con.pos - p, force)
+                moment = torque + cross3(con.pos - p, force)
                 out[6 * i : 6 * i + 3] += R.T @ force
                 out[6 * i + 3 : 6 * i + 6] += R.T @ moment
         return out
+
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b of two 3-vectors, as ``np.cross`` computes it (the same products and differences),
+    without its axis handling, which costs ~20 µs per call: the simulation calls it per contact
+    point and tick."""
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
 
 
 def output_row(t: float, out: ControlOutput, task_parts: dict[str, list[str]]) -> dict[str, float]:

@@ -11,8 +11,11 @@ the frame is free and a swing task may drive it.
   carries load: a runner that reports the feet's normal forces (:meth:`ContactSchedule.observe`)
   activates the contact at the first tick in ``[start − tolerance, start + tolerance]`` at which
   it carries ``touchdown_load``; if none does, the run ends with a message that names the
-  contact, the scheduled time and the tolerance. After touchdown the lower bound ramps in over
-  ``unload`` seconds (``s f_min ≤ f_z``), so the new contact need not push at once.
+  contact, the scheduled time and the tolerance. After touchdown both bounds ramp in over
+  ``unload`` seconds, ``s f_min ≤ f_z ≤ (r + (1 − r) s) min(f_max, F)`` with ``s = (t −
+  touchdown) / unload`` and ``r = touchdown_load / F`` (the share the foot carries when its
+  touchdown is confirmed): the new contact need not push at once, and the wrench does not jump
+  onto it, as it does not jump off a foot that lifts off.
   Without observations (a replay, a test of one tick) a touchdown happens at its scheduled time.
 * **Landing**: where an interval has a target (a footstep), a touchdown farther than
   ``landing_tolerance`` from it ends the run with a message that names the contact and the
@@ -137,6 +140,9 @@ class ContactSchedule:
         active: list[int] = []
         lower: list[float] = []
         upper: list[float] = []
+        # the share of the ramp force a landing foot carries when its touchdown is confirmed:
+        # its upper bound ramps in from there
+        rise = min(1.0, self.touchdown_load / self.ramp_force) if self.ramp_force > 0 else 1.0
         for i, c in enumerate(self.contacts):
             ramp = c.unload
             for k, (_, end) in enumerate(c.intervals):
@@ -147,7 +153,7 @@ class ContactSchedule:
                 up = min(1.0, (t - start) / ramp) if start > 0 else 1.0
                 active.append(i)
                 lower.append(max(0.0, min(down, up)))
-                upper.append(max(0.0, down))
+                upper.append(max(0.0, min(down, rise + (1.0 - rise) * up)))
                 break
         return ContactPhase(tuple(active), tuple(lower), tuple(upper))
 

@@ -85,6 +85,9 @@ class WalkTiming:
             ramps to zero; at most ``double``.
         swing_height: the swing foot's clearance above the line between lift-off and touchdown
             [m].
+        touchdown_velocity: the swing foot's downward speed as it reaches its footstep [m/s];
+            past its touchdown time it goes on down at that speed (for at most ``double``) until
+            the contact is confirmed. 0: it lands at rest.
     """
 
     single: float = 0.8
@@ -93,6 +96,7 @@ class WalkTiming:
     end: float = 1.5
     unload: float = 0.1
     swing_height: float = 0.05
+    touchdown_velocity: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("single", "double", "start", "end"):
@@ -104,6 +108,11 @@ class WalkTiming:
             )
         if self.swing_height < 0:
             raise ValueError(f"swing_height must be ≥ 0 m, got {self.swing_height}")
+        if self.touchdown_velocity < 0:
+            raise ValueError(
+                f"touchdown_velocity must be ≥ 0 m/s (a downward speed), got "
+                f"{self.touchdown_velocity}"
+            )
 
 
 def footsteps_from_walk(
@@ -284,7 +293,8 @@ class WalkPlan:
         """The path of the swing that lands on ``step``."""
         before = [f for f in self.footsteps if f.foot == step.foot]
         start = before[before.index(step) - 1]
-        return SwingTrajectory(start, step, self.timing.swing_height)
+        t = self.timing
+        return SwingTrajectory(start, step, t.swing_height, t.touchdown_velocity, t.double)
 
     def foot_trajectory(self, foot: str) -> FootTrajectory:
         """The whole walk's pose reference of one foot: held between swings, swung between."""
@@ -322,7 +332,15 @@ class WalkPlan:
             "com_height": self.com_height,
             "timing": {
                 k: getattr(self.timing, k)
-                for k in ("single", "double", "start", "end", "unload", "swing_height")
+                for k in (
+                    "single",
+                    "double",
+                    "start",
+                    "end",
+                    "unload",
+                    "swing_height",
+                    "touchdown_velocity",
+                )
             },
             "duration": self.duration,
         }
@@ -421,14 +439,27 @@ class SwingTrajectory(Trajectory):
     """A swing foot's position (x, y, z) and yaw between lift-off and touchdown.
 
     Horizontally and in yaw a minimum-jerk move; vertically the same move plus a bump
-    ``h · 64 s³ (1 − s)³`` that peaks at h halfway. Velocity and acceleration are zero at both
-    ends. ``sample`` returns (x, y, z, yaw) and its derivatives.
+    ``h · 64 s³ (1 − s)³`` that peaks at h halfway, and, with a touchdown velocity v, the quintic
+    ``−v T (7 s⁴ − 3 s⁵ − 4 s³)`` (T the swing's duration) that is zero at both ends with zero
+    acceleration there and gives the landing its downward speed v. It leaves at rest; it lands
+    with zero horizontal velocity, zero acceleration and vertical velocity −v. After the
+    touchdown time the foot goes on down at v for at most ``search`` seconds (a touchdown
+    search: the contact takes over once the foot carries load), then is held. ``sample``
+    returns (x, y, z, yaw) and its derivatives.
     """
 
     dim = 4
 
-    def __init__(self, start: Footstep, end: Footstep, height: float) -> None:
+    def __init__(
+        self,
+        start: Footstep,
+        end: Footstep,
+        height: float,
+        touchdown_velocity: float = 0.0,
+        search: float = 0.0,
+    ) -> None:
         self.start, self.end, self.height = start, end, height
+        self.touchdown_velocity, self.search = touchdown_velocity, search
         self._a = np.array([*start.position, start.yaw])
         delta_yaw = _wrap(end.yaw - start.yaw)
         self._delta = np.array([*(np.array(end.position) - start.position), delta_yaw])
@@ -436,6 +467,15 @@ class SwingTrajectory(Trajectory):
 
     def sample(self, t: float) -> Sample:
         duration = self._t1 - self._t0
+        v = self.touchdown_velocity
+        if t > self._t1:
+            x = np.array([*self.end.position, self.end.yaw])
+            dx, ddx = np.zeros(4), np.zeros(4)
+            if v > 0:
+                late = min(t - self._t1, self.search)
+                x[2] -= v * late
+                dx[2] = -v if t - self._t1 < self.search else 0.0
+            return x, dx, ddx
         s = min(max((t - self._t0) / duration, 0.0), 1.0)
         p = s**3 * (10 - 15 * s + 6 * s * s)
         dp = 30 * s * s * (1 - s) ** 2 / duration
@@ -444,10 +484,15 @@ class SwingTrajectory(Trajectory):
         bump = 64.0 * s**3 * (1 - s) ** 3
         dbump = 192.0 * s * s * (1 - s) ** 2 * (1 - 2 * s) / duration
         ddbump = 384.0 * s * (1 - s) * (1 - 5 * s + 5 * s * s) / duration**2
-        h = self.height
-        x[2] += h * bump
-        dx[2] += h * dbump
-        ddx[2] += h * ddbump
+        # the end-velocity term of the quintic Hermite basis: zero value at both ends, zero
+        # slope at the start and unit slope (in s) at the end, zero curvature at both
+        land = s**3 * (-4 + 7 * s - 3 * s * s)
+        dland = s * s * (-12 + 28 * s - 15 * s * s) / duration
+        ddland = s * (-24 + 84 * s - 60 * s * s) / duration**2
+        h, w = self.height, -v * duration
+        x[2] += h * bump + w * land
+        dx[2] += h * dbump + w * dland
+        ddx[2] += h * ddbump + w * ddland
         return x, dx, ddx
 
 
@@ -464,10 +509,12 @@ class FootTrajectory(Trajectory):
 
     def sample(self, t: float) -> Sample:
         i = bisect.bisect_left(self._ends, t)
+        if i > 0 and t - self._ends[i - 1] < self._swings[i - 1].search:
+            return self._swings[i - 1].sample(t)  # its touchdown search
         if i == len(self._swings):
-            last = self._swings[-1].end if self._swings else None
-            held = self._hold if last is None else np.array([*last.position, last.yaw])
-            return held, self._zero, self._zero
+            if self._swings:
+                return self._swings[-1].sample(t)  # landed (or searching), then held
+            return self._hold, self._zero, self._zero
         return self._swings[i].sample(t)
 
 

@@ -12,6 +12,7 @@ namespace wbcbench {
 WBCBENCH_BIND(osf, kBase, m) {
   nb::class_<OsfSettings>(m, "OsfSettings", "What both OSF ticks take once.")
       .def(nb::init<>())
+      .def_rw("tasks", &OsfSettings::tasks)
       .def_rw("level_dims", &OsfSettings::level_dims)
       .def_rw("force_level", &OsfSettings::force_level)
       .def_rw("inverse", &OsfSettings::inverse)
@@ -37,7 +38,8 @@ WBCBENCH_BIND(osf, kBase, m) {
       .def_prop_ro("partial", &OsfTick::partial, kView)
       .def_prop_ro("tau", &OsfTick::tau, kView)
       .def_prop_ro("qdd", &OsfTick::qdd, kView)
-      .def_prop_ro("wrench", &OsfTick::wrench, kView);
+      .def_prop_ro("wrench", &OsfTick::wrench, kView)
+      .def_prop_ro("level_ref", &OsfTick::level_ref, kView);
 }
 
 }  // namespace wbcbench

@@ -1,6 +1,7 @@
 #include "controllers/osf.hpp"
 
 #include <stdexcept>
+#include <string>
 
 namespace wbcbench {
 
@@ -27,7 +28,27 @@ void OsfTick::configure_osf(const OsfSettings& s, bool affine) {
     offsets_[i] = nr_;
     nr_ += s.level_dims[i];
   }
-  if (nr_ != tasks_.rows()) throw std::invalid_argument("osf: level dims do not sum to the tasks' rows");
+  picked_ = false;
+  if (s.tasks.empty()) {
+    os_.tasks.resize(tasks_.size());
+    for (int i = 0; i < tasks_.size(); ++i) os_.tasks[i] = i;
+  }
+  int picked_rows = 0;
+  for (size_t j = 0; j < os_.tasks.size(); ++j) {
+    const int i = os_.tasks[j];
+    if (i < 0 || i >= tasks_.size())
+      throw std::invalid_argument("osf: task index " + std::to_string(i) + " out of range");
+    picked_ = picked_ || i != static_cast<int>(j);
+    picked_rows += tasks_.dim(i);
+  }
+  picked_ = picked_ || static_cast<int>(os_.tasks.size()) != tasks_.size();
+  if (nr_ != picked_rows)
+    throw std::invalid_argument("osf: level dims do not sum to the level tasks' rows");
+  if (picked_ && s.asynchronous)
+    throw std::invalid_argument("osf: params async computes with every task; pick none");
+  J_.setZero(picked_ ? nr_ : 0, nv());
+  drift_.setZero(picked_ ? nr_ : 0);
+  ref_.setZero(picked_ ? nr_ : 0);
   nc_ = static_cast<int>(dyn_.contact_jacobian().rows());
   nw_ = static_cast<int>(s.Cw.rows());
   if (s.tau_max.size() != k()) throw std::invalid_argument("osf: tau_max of wrong size");
@@ -71,13 +92,30 @@ void OsfTick::evaluate_osf(const Eigen::Ref<const Vector>& q, const Eigen::Ref<c
   const bool due = !have_params_ || tick_ - params_.tick >= os_.period;
   dyn_.set_inverse(due);  // M⁻¹ only on the ticks that compute parameters
   evaluate(q, v, t);
+  if (picked_) {  // the level tasks' rows, in level order
+    int row = 0;
+    for (const int i : os_.tasks) {
+      const int m = tasks_.dim(i), from = tasks_.offset(i);
+      J_.middleRows(row, m) = tasks_.J().middleRows(from, m);
+      drift_.segment(row, m) = tasks_.drift().segment(from, m);
+      ref_.segment(row, m) = tasks_.acc_ref().segment(from, m);
+      row += m;
+    }
+  }
   times_.params = 0.0;
   if (due) {
-    model_->compute(dyn_, tasks_.J(), tasks_.drift(), tick_, params_);
+    model_->compute(dyn_, level_J(), level_drift(), tick_, params_);
     have_params_ = true;
     times_.params = params_.compute_time;
     if (worker_) worker_->publish(q, v, t, tick_);  // the worker starts from this state
   }
+}
+
+void OsfTick::store_wrench_bounds(const char* controller, const Eigen::Ref<const Vector>& lw,
+                                  const Eigen::Ref<const Vector>& uw) {
+  check_wrench_bounds(controller, os_.Cw, lw, uw);
+  os_.lw = lw;  // (the same sizes: no allocation)
+  os_.uw = uw;
 }
 
 void OsfTick::realise(const Vector& dist) {

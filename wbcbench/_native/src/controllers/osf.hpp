@@ -13,9 +13,11 @@
 
 namespace wbcbench {
 
-// What both OSF ticks take once. Tasks are added in level order (highest priority first), so
-// every level is a block of rows of the stacked tasks.
+// What both OSF ticks take for a contact set. Tasks are added in level order (highest priority
+// first); `tasks` picks those of the levels (a swing task of a standing foot leaves them), so
+// every level is a block of rows of the picked tasks.
 struct OsfSettings {
+  std::vector<int> tasks;       // indices into the tick's tasks, in level order (empty: all)
   std::vector<int> level_dims;
   std::vector<bool> force_level;
   std::string inverse = "cod";  // cod | svd | pinv
@@ -26,7 +28,7 @@ struct OsfSettings {
   Vector tau_max;               // (k,)
   Matrix Cw;                    // wrench inequalities (nw, 6c)
   Vector lw, uw;
-  Vector acc_bound;             // |ẍ_opt| bound per task row (inf: none)
+  Vector acc_bound;             // |ẍ_opt| bound per level task row (inf: none)
 };
 
 // The parameters' part of a tick: the model, the current set, when it was computed.
@@ -45,9 +47,19 @@ class OsfTick : public Tick {
   const Vector& tau() const { return tau_; }
   const Vector& qdd() const { return qdd_; }
   const Vector& wrench() const { return wrench_; }
+  // the level tasks' stacked rows (those OsfSettings::tasks picks), in level order
+  const Matrix& level_J() const { return picked_ ? J_ : tasks_.J(); }
+  const Vector& level_drift() const { return picked_ ? drift_ : tasks_.drift(); }
+  const Vector& level_ref() const { return picked_ ? ref_ : tasks_.acc_ref(); }
 
  protected:
+  // configure() again for a new contact set re-sizes what depends on it and drops the
+  // parameters of the old set: the next tick computes a set for the new one
   void configure_osf(const OsfSettings& s, bool affine);
+  // the ramped normal-force bounds of the active contacts (Tick::set_wrench_bounds), read by
+  // the next build
+  void store_wrench_bounds(const char* controller, const Eigen::Ref<const Vector>& lw,
+                           const Eigen::Ref<const Vector>& uw);
   // dynamics, tasks and (when due) the parameters at (q, v, t); the tick counter advances
   void evaluate_osf(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v,
                     double t);
@@ -63,6 +75,9 @@ class OsfTick : public Tick {
   long tick_ = -1;
   int nc_ = 0, nw_ = 0, nr_ = 0;
   std::vector<int> offsets_;  // first row of each level
+  bool picked_ = false;       // the levels hold a subset of the tasks: gathered into J_ …
+  Matrix J_;
+  Vector drift_, ref_;
   RowMatrix partial_;
   Vector tau_, qdd_, wrench_, work_;
   std::string message_;

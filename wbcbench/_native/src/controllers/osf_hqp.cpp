@@ -38,6 +38,11 @@ void OsfHqpTick::configure(const OsfHqpSettings& settings) {
   slack_.setZero(L);
 }
 
+void OsfHqpTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                                   const Eigen::Ref<const Vector>& uw) {
+  store_wrench_bounds("osf_hqp", lw, uw);
+}
+
 bool OsfHqpTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v,
                        double t) {
   const auto t0 = Clock::now();
@@ -64,7 +69,7 @@ void OsfHqpTick::build_level(int i) {
   if (i >= levels()) return;
   const OsfParams& p = params_;
   const int m = os_.level_dims[i], kk = k();
-  const auto ref = tasks_.acc_ref().segment(offsets_[i], m);
+  const auto ref = level_ref().segment(offsets_[i], m);
   p.level_step(i, tau_, ref, base_);  // Γ_{≤l} with w_l = 0
   const Matrix& E = p.levels[i].E;
   QpBuffers& qp = qps_[i];
@@ -78,8 +83,8 @@ void OsfHqpTick::build_level(int i) {
   if (nw_) {
     Vector cwb = cw_f0_;
     cwb.noalias() += CwF_ * base_;
-    qp.l.tail(nw_) = s_.lw - cwb;
-    qp.u.tail(nw_) = s_.uw - cwb;
+    qp.l.tail(nw_) = os_.lw - cwb;
+    qp.u.tail(nw_) = os_.uw - cwb;
   }
   qp.l.array() -= tol;
   qp.u.array() += tol;
@@ -106,8 +111,8 @@ void OsfHqpTick::build_wrench() {
   const double tol = s_.carry_tolerance * L;
   qp.l.head(kk) = -s_.tau_max - tau_;
   qp.u.head(kk) = s_.tau_max - tau_;
-  qp.l.tail(nw_) = s_.lw - cwt;
-  qp.u.tail(nw_) = s_.uw - cwt;
+  qp.l.tail(nw_) = os_.lw - cwt;
+  qp.u.tail(nw_) = os_.uw - cwt;
   qp.l.array() -= tol;
   qp.u.array() += tol;
 }

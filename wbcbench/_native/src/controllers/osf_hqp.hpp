@@ -20,7 +20,11 @@ struct OsfHqpSettings : OsfSettings {
 class OsfHqpTick : public OsfTick {
  public:
   using OsfTick::OsfTick;
+  // the settings of a contact set: again on a change of the set (after select_contacts), which
+  // makes the QPs anew (qp(i) of before then refers to nothing)
   void configure(const OsfHqpSettings& settings);
+  void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                         const Eigen::Ref<const Vector>& uw) override;
   // dynamics, tasks, parameters and the first level's QP; false when the QP holds a NaN or the
   // wrench-distribution space changed dimension (see message())
   bool build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t);

@@ -19,7 +19,8 @@ void ToOsfTick::configure(const ToOsfSettings& settings) {
   if (s_.row_weights.size() != nr_) throw std::invalid_argument("to_osf: one weight per task row");
   if (s_.Sf.cols() != nc_) throw std::invalid_argument("to_osf: Sf of wrong size");
   // F_opt = N w when the first contact's block of G is invertible (the Python reference's test,
-  // on the initial configuration's shape: 6-D contacts keep it invertible)
+  // on the initial configuration's shape: 6-D contacts keep it invertible), for the contact set
+  // configured: a single 6-D contact has no internal wrench (nf = 0), two have six
   basis_ = s_.internal_basis && nc_ >= 6;
   nf_ = basis_ ? nc_ - 6 : nc_;
   nx_ = nr_ + nf_;
@@ -54,7 +55,7 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
         "to_osf: the grasp map's first contact block is singular; use internal: constraint");
   }
   const int kk = k();
-  const Vector& ref = tasks_.acc_ref();
+  const Vector& ref = level_ref();
   // f = A_f x + f_c  (eq. 13)
   Af_.leftCols(nr_).noalias() = p.F * p.K;
   if (basis_ && nf_ > 0) Af_.rightCols(nf_) = N_;
@@ -97,8 +98,8 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
   if (nc_) {
     qp_.C.bottomRows(nw_).noalias() = s_.Cw * Af_;
     const Vector cwf = s_.Cw * fc_;
-    qp_.l.tail(nw_) = s_.lw - cwf;
-    qp_.u.tail(nw_) = s_.uw - cwf;
+    qp_.l.tail(nw_) = os_.lw - cwf;
+    qp_.u.tail(nw_) = os_.uw - cwf;
   }
   // x = D x̃
   qp_.H = D_.asDiagonal() * qp_.H * D_.asDiagonal();
@@ -108,6 +109,11 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
   const bool ok = qp_.finite();
   times_.build = seconds_since(t0) - times_.dynamics - times_.params;
   return ok;
+}
+
+void ToOsfTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                                  const Eigen::Ref<const Vector>& uw) {
+  store_wrench_bounds("to_osf", lw, uw);
 }
 
 bool ToOsfTick::internal_basis() {

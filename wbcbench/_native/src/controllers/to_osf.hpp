@@ -20,7 +20,10 @@ struct ToOsfSettings : OsfSettings {
 class ToOsfTick : public OsfTick {
  public:
   using OsfTick::OsfTick;
+  // the settings of a contact set: again on a change of the set (after select_contacts)
   void configure(const ToOsfSettings& settings);
+  void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                         const Eigen::Ref<const Vector>& uw) override;
   // dynamics, tasks, parameters and the QP; false when the QP holds a NaN
   bool build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t);
   // τ, q̈ and the wrench from the QP's solution (scaled variables)

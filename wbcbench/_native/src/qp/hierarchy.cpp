@@ -40,28 +40,39 @@ Matrix null_projector(const Matrix& A) {
 }
 
 // Row-space basis R, null-space basis Z and minimum-norm solution x_p of A x = b, one QR.
-void hard_factor(const Matrix& A, const Vector& b, Matrix& R, Matrix& Z, Vector& x_p) {
+// R or Z may be null: only the columns of Q asked for are formed (the reflectors applied to the
+// identity's columns), which is most of the cost on a wide A.
+void hard_factor(const Matrix& A, const Vector& b, Matrix* R, Matrix* Z, Vector& x_p) {
   const Index n = A.cols();
   if (A.rows() == 0) {
-    R.setZero(0, n);
-    Z.setIdentity(n, n);
+    if (R) R->setZero(0, n);
+    if (Z) Z->setIdentity(n, n);
     x_p.setZero(n);
     return;
   }
   Eigen::ColPivHouseholderQR<Matrix> qr(A.transpose());  // Aᵀ P = Q R
   const int rank = qr_rank(qr, kRankTol);
-  const Matrix Q = qr.householderQ();
-  R = Q.leftCols(rank).transpose();
-  Z = Q.rightCols(n - rank);
+  if (R) {
+    Matrix Q1 = Matrix::Identity(n, rank);
+    Q1.applyOnTheLeft(qr.householderQ());
+    *R = Q1.transpose();
+  }
+  if (Z) {
+    Matrix Q2 = Matrix::Zero(n, n - rank);
+    Q2.bottomRows(n - rank).setIdentity();
+    Q2.applyOnTheLeft(qr.householderQ());
+    *Z = std::move(Q2);
+  }
   if (rank == A.rows()) {
     // Pᵀ A = Rᵀ Qᵀ: x = Q₁ y with R₁ᵀ y = Pᵀ b is the minimum-norm solution
     const Vector pb = qr.colsPermutation().transpose() * b;
-    const Vector y = qr.matrixQR()
+    x_p.setZero(n);
+    x_p.head(rank) = qr.matrixQR()
                          .topLeftCorner(rank, rank)
                          .triangularView<Eigen::Upper>()
                          .transpose()
                          .solve(pb);
-    x_p.noalias() = Q.leftCols(rank) * y;
+    x_p.applyOnTheLeft(qr.householderQ());
   } else {
     x_p = A.completeOrthogonalDecomposition().solve(b);
   }
@@ -476,9 +487,10 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
   Matrix Eb(0, n);
   Vector e(0);
   // one factorisation of the hard equalities: bases and the minimum-norm solution x_p
+  // (the cascade projects the held rows with R, the null-space strategy works in Z)
   Matrix R_hard, Z;
   Vector x_p;
-  hard_factor(hard.A, hard.b, R_hard, Z, x_p);
+  hard_factor(hard.A, hard.b, nullspace ? nullptr : &R_hard, nullspace ? &Z : nullptr, x_p);
   const Merged none;
   const int last = n_levels - 1;
   bool skip = false;
@@ -514,9 +526,9 @@ HierarchyResult Hierarchy::solve_sequential(const HardConstraints& hard,
       Vector x_l = x_p;
       Matrix Z_l = Z;
       if (lv.A.rows()) {
-        Matrix Rl, Zl;
+        Matrix Zl;
         Vector y0;
-        hard_factor(lv.A * Z, lv.b - lv.A * x_p, Rl, Zl, y0);
+        hard_factor(lv.A * Z, lv.b - lv.A * x_p, nullptr, &Zl, y0);
         x_l.noalias() += Z * y0;
         const double scale = 1.0 + (lv.b.size() ? lv.b.cwiseAbs().maxCoeff() : 0.0);
         // the equalities cannot be met together with the levels above
