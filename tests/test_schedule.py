@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
+from wbcbench.controllers.rc_lqp import RcLqp
 from wbcbench.errors import ScenarioError, WbcBenchError
 from wbcbench.runs import plan_run
 from wbcbench.scenarios.load import SCENARIO_DIR, load_scenario
@@ -137,7 +138,11 @@ def test_walk_touchdown_velocity_is_a_downward_speed(
     assert error_of(tmp_path, raw) == f"walk.touchdown_velocity: {message}"
 
 
-def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule() -> None:
+def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # every built-in native tick follows the contacts: one that would not, as a plugin's may
+    monkeypatch.setattr(RcLqp, "native_schedule", False)
     with pytest.raises(WbcBenchError) as exc:
         plan_run(WALK, "rc_lqp", "daqp", config={"impl": "native"})
     assert str(exc.value) == (
@@ -148,18 +153,33 @@ def test_native_tick_of_a_fixed_contact_set_refuses_a_schedule() -> None:
     )
 
 
-@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp", "to_osf", "osf_hqp"])
+@pytest.mark.parametrize("controller", ["qp_wbc", "hqp", "lqp", "to_osf", "osf_hqp", "rc_lqp"])
 def test_native_tick_that_follows_a_schedule_is_planned(controller: str) -> None:
     run = plan_run(WALK, controller, "daqp", config={"impl": "native"})
     assert run.impl == "native"
 
 
-def test_a_sweep_runs_native_only_the_ticks_that_follow_a_schedule() -> None:
+def test_a_walk_uses_three_contact_sets() -> None:
+    schedule = plan_run(WALK, "qp_wbc", "daqp").context().schedule
+    assert schedule is not None
+    left, right = (schedule.frames.index(f) for f in ("l_sole", "r_sole"))
+    # double support, then single support on the stance foot of the first step, then the other
+    first = schedule.phase(schedule.touchdowns()[0][0] - 0.1).active
+    assert len(first) == 1
+    other = (left,) if first == (right,) else (right,)
+    assert schedule.contact_sets() == [tuple(sorted((left, right))), first, other]
+
+
+def test_a_sweep_runs_native_only_the_ticks_that_follow_a_schedule(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     from wbcbench.bench.sweep import _impl_configs
 
     impls = ["native", "python"]
     assert _impl_configs(impls, "qp_wbc", scheduled=True) == [{"impl": i} for i in impls]
     assert _impl_configs(impls, "to_osf", scheduled=True) == [{"impl": i} for i in impls]
+    assert _impl_configs(impls, "rc_lqp", scheduled=True) == [{"impl": i} for i in impls]
+    monkeypatch.setattr(RcLqp, "native_schedule", False)  # a tick of a fixed contact set
     assert _impl_configs(impls, "rc_lqp", scheduled=True) == [{"impl": "python"}]
     assert _impl_configs(impls, "rc_lqp", scheduled=False) == [{"impl": i} for i in impls]
 

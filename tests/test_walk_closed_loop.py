@@ -50,6 +50,7 @@ WALKERS = [
     ("lqp", "native"),
     ("to_osf", "native"),
     ("osf_hqp", "native"),
+    ("rc_lqp", "native"),
 ]
 
 

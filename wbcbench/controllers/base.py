@@ -109,6 +109,12 @@ def native_schedule_refusal(controller: str) -> str:
     )
 
 
+def stance_tasks(tasks: list[Task], frames: set[str]) -> list[Task]:
+    """The tasks of a tick whose active contacts are on ``frames``: those that drive none of
+    them (a swing task leaves the QPs while its foot stands)."""
+    return [task for task in tasks if getattr(task, "frame", None) not in frames]
+
+
 @dataclass
 class ControllerContext:
     """Everything a controller may use besides its own settings.
@@ -307,24 +313,12 @@ class Controller(ABC):
         if schedule is None:
             return None
         phase = schedule.phase(t)
-        cache: dict[tuple[int, ...], Any] = self.__dict__.setdefault("_contact_sets", {})
-        entry = cache.get(phase.active)
-        if entry is None:
-            contacts = [self.ctx.contacts[i] for i in phase.active]
-            Cw, lw, uw = stack_wrench_constraints(contacts)
-            starts = np.cumsum([0] + [c.n_constraints for c in contacts])[:-1].tolist()
-            rows = [[s + r for r in c.normal_rows()] for s, c in zip(starts, contacts, strict=True)]
-            fmax = [c.fmax for c in contacts]
-            entry = cache[phase.active] = (contacts, Cw, lw, uw, rows, fmax)
-        contacts, Cw, lw, uw, rows, fmax = entry
+        contacts, Cw, lw, uw, rows, fmax = self.contact_set(phase.active)
         changed = phase.active != self.active_contacts
         self.frames = [c.frame for c in contacts]
         self.contacts = contacts
         if changed:
-            held = set(self.frames)
-            self.active_tasks = [
-                task for task in self.ctx.tasks if getattr(task, "frame", None) not in held
-            ]
+            self.active_tasks = stance_tasks(self.ctx.tasks, set(self.frames))
         self.Cw, self.nc = Cw, contacts_dim(contacts)
         self.lw, self.uw = np.empty_like(lw), np.empty_like(uw)
         schedule.scale_bounds(phase, rows, fmax, lw, uw, self.lw, self.uw)
@@ -332,6 +326,21 @@ class Controller(ABC):
         if changed:
             self.contacts_changed()
         return phase
+
+    def contact_set(self, active: tuple[int, ...]) -> tuple[Any, ...]:
+        """The contacts ``active`` (indices into the context's), their stacked wrench rows
+        ``(Cw, lw, uw)``, the rows of each one's normal-force bounds and its f_max: built on
+        first use and kept."""
+        cache: dict[tuple[int, ...], Any] = self.__dict__.setdefault("_contact_sets", {})
+        entry = cache.get(active)
+        if entry is None:
+            contacts = [self.ctx.contacts[i] for i in active]
+            Cw, lw, uw = stack_wrench_constraints(contacts)
+            starts = np.cumsum([0] + [c.n_constraints for c in contacts])[:-1].tolist()
+            rows = [[s + r for r in c.normal_rows()] for s, c in zip(starts, contacts, strict=True)]
+            fmax = [c.fmax for c in contacts]
+            entry = cache[active] = (contacts, Cw, lw, uw, rows, fmax)
+        return entry
 
     def contacts_changed(self) -> None:  # noqa: B027 - a hook: most controllers need nothing
         """Rebuild what depends on the contact set, after :meth:`select_contacts` changed it."""

@@ -102,11 +102,18 @@ ticks). Diagnostics: ``replan``, ``fallback``, ``coupling_residual`` (eq. 30), `
 (max |Γ_exact − Γ_paper| [N·m]) and each level's optimal slacks.
 
 ``impl: native`` runs the same step in C++ (``wbcbench/_native/src/controllers/rc_lqp.cpp``):
-the reduced model, the row split (decided on its first tick, as here), the preview, both LQPs
+the reduced model, the row split (decided here and handed over), the preview, both LQPs
 and every re-solve, the assembly and its checks; each hierarchy's level QPs go to the solver
 through the lean path with the handles of the pool the Python step uses for it, so warm and hot
 handles see the same problems in both impls. ``reduced``, ``lqp1``, ``lqp2`` and ``fallback``
 are then timed natively.
+
+On a changing contact set (a walk) the chains follow the stance: a foot in the air is a chain,
+a standing one closes the constraint chain. Each contact set has its own chain split, reduced
+model and row split (a *stance*), built once and kept; with a schedule, :meth:`RcLqp.on_start`
+builds the stance of every set the schedule uses at the first state, so a change of contacts
+switches to one (:meth:`RcLqp.contacts_changed`) and builds nothing. The native tick holds a
+reduced model per stance, made with it, and switches with the set it is handed.
 """
 
 from __future__ import annotations
@@ -126,6 +133,7 @@ from wbcbench.controllers.base import (
     ControlOutput,
     NativeConfig,
     StageTimer,
+    stance_tasks,
 )
 from wbcbench.controllers.lqp import (
     LexicographicConfig,
@@ -146,7 +154,7 @@ from wbcbench.controllers.native import (
     accept_tol,
     set_limits,
 )
-from wbcbench.dynamics.chains import CENTROID_DIM, split_chains
+from wbcbench.dynamics.chains import CENTROID_DIM, ChainSplit, split_chains
 from wbcbench.dynamics.dense import spd_factor, tri_solve
 from wbcbench.dynamics.reduced import ReducedDynamics, ReducedModel
 from wbcbench.dynamics.state import RobotState, contact_selector
@@ -158,7 +166,7 @@ from wbcbench.qp.hierarchy import (
     solve_hierarchy,
 )
 from wbcbench.tasks.contacts import contacts_dim, stack_wrench_constraints
-from wbcbench.tasks.tasks import TaskTerm
+from wbcbench.tasks.tasks import Task, TaskTerm
 
 
 class RcLqpConfig(NativeConfig, LexicographicConfig):
@@ -286,6 +294,20 @@ class Preview:
 
 
 @dataclass
+class _Stance:
+    """What follows one contact set: its chain split, its reduced model and the row split of
+    its tasks (None until decided)."""
+
+    split: ChainSplit
+    reduced: ReducedDynamics
+    rows: _RowSplit | None = None
+    #: the native tick's settings for the set (LexicographicSettings, RcLqpSettings, the row
+    #: split's lists) and the row split they were made from: made once, handed over at each
+    #: change to the set
+    native: tuple[Any, ...] | None = None
+
+
+@dataclass
 class _RowSplit:
     """Which rows of each task LQP 1 handles (reducible) and which LQP 2 does."""
 
@@ -307,12 +329,15 @@ class RcLqp(NativeController):
     reference_solvers = ("quadprog",)
     config: RcLqpConfig
     tick_type = "RcLqpTick"
+    native_schedule = True
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)
         self.frames = ctx.contact_frames
-        self.split = split_chains(ctx.robot.pin_model, self.frames)
-        self.reduced = ReducedDynamics(ctx.robot.pin_model, self.split, self.contacts)
+        #: each contact set's stance, built once and kept (the first: every contact)
+        self._stances: dict[tuple[int, ...], _Stance] = {}
+        every = self._stance(tuple(range(len(ctx.contacts))))
+        self.split, self.reduced = every.split, every.reduced
         self.Cw, self.lw, self.uw = stack_wrench_constraints(ctx.contacts)
         self.nc = contacts_dim(self.contacts)
         self.pool1 = SolverPool(ctx)
@@ -339,6 +364,10 @@ class RcLqp(NativeController):
             self.full.pool,
         ]
         self._rows: _RowSplit | None = None
+        # the stances the native tick holds, and the state of the native step under way (where
+        # a contact set first met at it decides its row split)
+        self._tick_stances: set[tuple[int, ...]] = set()
+        self._tick_state: RobotState | None = None
         self.last: tuple[HierarchyResult, HierarchyResult | None] | None = None
         self.last_reduced: ReducedModel | None = None
         self.last_output: ControlOutput | None = None
@@ -349,41 +378,99 @@ class RcLqp(NativeController):
     # -- a contact set that changes ------------------------------------------------------------
 
     def select_contacts(self, t: float) -> Any:
-        """The active contacts, also for the full-model LQP this controller falls back on."""
-        self.full.select_contacts(t)
+        """The active contacts, also for the full-model LQP this controller falls back on (the
+        Python one: the native tick's selects with the tick)."""
+        if self.impl == "python":
+            self.full.select_contacts(t)
         return super().select_contacts(t)
 
+    def _stance(self, active: tuple[int, ...]) -> _Stance:
+        """The stance of the contacts ``active`` (indices into the context's), built on first
+        use and kept."""
+        stance = self._stances.get(active)
+        if stance is None:
+            contacts = [self.ctx.contacts[i] for i in active]
+            split = split_chains(self.ctx.robot.pin_model, [c.frame for c in contacts])
+            model = ReducedDynamics(self.ctx.robot.pin_model, split, contacts)
+            stance = self._stances[active] = _Stance(split, model)
+        return stance
+
     def contacts_changed(self) -> None:
-        """The chains follow the stance: the split and the reduced model of the new contact set
-        (built once per set and kept), and the row split decided again at this tick's state."""
-        models = self.__dict__.setdefault("_stance_models", {})
-        entry = models.get(self.active_contacts)
-        if entry is None:
-            split = split_chains(self.ctx.robot.pin_model, self.frames)
-            entry = models[self.active_contacts] = (
-                split,
-                ReducedDynamics(self.ctx.robot.pin_model, split, self.contacts),
-            )
-        self.split, self.reduced = entry
+        """The chains follow the stance: the split, the reduced model and the row split of the
+        new contact set (each built once per set and kept; the row split of a set the schedule
+        did not foresee is decided at the state of the tick that first meets it)."""
+        stance = self._stance(self.active_contacts)
+        self.split, self.reduced, self._rows = stance.split, stance.reduced, stance.rows
         self._act_plain = self.split.plain[6:] - 6
         self._act_uc = self.split.unconstrained - 6
-        self._rows = None
+        if self.native_tick is not None and self.active_contacts not in self._tick_stances:
+            self.native_tick.add_stance(_native.split_spec(stance.split))
+            self._tick_stances.add(self.active_contacts)
+
+    def _decide_rows(self, state: RobotState) -> _RowSplit:
+        """The row split of the contact set held, at ``state``, kept with its stance."""
+        self._rows = self.row_split(state)
+        if self.ctx.schedule is not None and -1 not in self.active_contacts:
+            self._stance(self.active_contacts).rows = self._rows
+        return self._rows
 
     # -- the native tick ------------------------------------------------------------------------
 
     def on_start(self, state: RobotState) -> None:
-        """The row split, decided at the first state."""
+        """The row split, decided at the first state; with a contact schedule, also the stance
+        of every contact set it uses and the row split of each set's tasks, at the same state
+        (the split is structural: a change of contacts then builds and decides nothing)."""
         self._rows = self.row_split(state)
+        schedule = self.ctx.schedule
+        if schedule is None:
+            return
+        for active in schedule.contact_sets():
+            contacts, Cw, lw, uw, _, _ = self.contact_set(active)
+            tasks = stance_tasks(self.ctx.tasks, {c.frame for c in contacts})
+            stance = self._stance(active)
+            if stance.rows is None:
+                stance.rows = self.row_split(state, stance.reduced, tasks)
+            if self.impl == "native" and stance.native is None:
+                wrench = (Cw, lw, uw, contacts_dim(contacts))
+                stance.native = (stance.rows, *self.tick_settings(stance.rows, tasks, wrench))
 
     def tick_args(self) -> tuple[Any, ...]:
-        return (_native.split_spec(self.split),)
+        """Every stance known, the one of every contact first: the tick builds their reduced
+        models once."""
+        self._tick_stances = set(self._stances)
+        return ([_native.split_spec(stance.split) for stance in self._stances.values()],)
+
+    def native_step(self, state: RobotState, t: float) -> ControlOutput:
+        self._tick_state = state
+        return super().native_step(state, t)
 
     def configure_tick(self, tick: Any) -> None:
+        rows = self._rows
+        if rows is None:
+            assert self._tick_state is not None
+            rows = self._decide_rows(self._tick_state)
+        stance = self._stances.get(self.active_contacts)
+        if stance is not None and stance.native is not None and stance.native[0] is rows:
+            settings = stance.native
+        else:
+            wrench = (self.Cw, self.lw, self.uw, self.nc)
+            settings = (rows, *self.tick_settings(rows, self.active_tasks, wrench))
+            if stance is not None:
+                stance.native = settings
+        _, s, rc, lqp1_rows = settings
+        tick.configure(s, rc)
+        tick.set_row_split(lqp1_rows)
+
+    def tick_settings(
+        self, rows: _RowSplit, tasks: list[Task], wrench: tuple[Any, ...]
+    ) -> tuple[Any, Any, list[list[int]]]:
+        """The native tick's settings for a contact set: its tasks, its wrench rows ``(Cw, lw,
+        uw, nc)`` (the bounds until ``set_wrench_bounds`` sets a tick's) and its row split."""
         cfg = self.config
         core = _native.core()
-        s = lexicographic_settings(cfg, self.ctx.tasks)
+        s = lexicographic_settings(cfg, self.ctx.tasks, tasks)
         s.accept_tol = accept_tol(self.ctx)
-        set_limits(s, self.ctx.tau_max, self.Cw, self.lw, self.uw, self.nc)
+        set_limits(s, self.ctx.tau_max, *wrench)
         rc = core.RcLqpSettings()
         rc.assembly = getattr(core.Assembly, cfg.assembly)
         rc.coupling_priority = cfg.coupling_priority
@@ -393,12 +480,19 @@ class RcLqp(NativeController):
         rc.coupling_tol = cfg.coupling_tol
         rc.wrench_tol = cfg.wrench_tol
         rc.infeasible_coupling = getattr(core.InfeasibleCoupling, cfg.infeasible_coupling)
-        tick.configure(s, rc)
-        assert self._rows is not None
-        tick.set_row_split([self._rows.lqp1[task.name].tolist() for task in self.ctx.tasks])
+        lqp1_rows = [
+            rows.lqp1[t.name].tolist() if t.name in rows.lqp1 else [] for t in self.ctx.tasks
+        ]
+        return s, rc, lqp1_rows
 
     def level_solve(self, tick: Any) -> LevelSolve:
-        handles = [pool.get(tick.handles(i)) for i, pool in enumerate(self.pools)]
+        # handles for the most levels any contact set gives (every priority), as lqp's
+        levels = len({task.priority for task in self.ctx.tasks})
+        bound = [2 * (levels + 4)] * (len(self.pools) - 1) + [2 * (levels + 2)]
+        handles = [
+            pool.get(max(tick.handles(i), most))
+            for i, (pool, most) in enumerate(zip(self.pools, bound, strict=True))
+        ]
         return LevelSolve(tick.slot, handles, self.ctx.keep_problems, self.config.solver_calls)
 
     def native_region(
@@ -475,8 +569,14 @@ class RcLqp(NativeController):
 
     # -- task rows ------------------------------------------------------------------------------
 
-    def row_split(self, state: RobotState) -> _RowSplit:
-        """Rows with J N_r = 0 go to LQP 1, the others to LQP 2 (decided once: structural).
+    def row_split(
+        self,
+        state: RobotState,
+        reduced: ReducedDynamics | None = None,
+        tasks: list[Task] | None = None,
+    ) -> _RowSplit:
+        """Rows with J N_r = 0 go to LQP 1, the others to LQP 2 (decided once per contact set:
+        structural); of ``tasks`` on ``reduced`` (the contact set held's by default).
 
         The test runs at ``state`` and at :func:`generic_state` of it, and a row goes to LQP 1
         only when it passes at both: J N_r = 0 can hold at one posture by coincidence (TALOS'
@@ -486,18 +586,18 @@ class RcLqp(NativeController):
         wrong as soon as the posture changes, and the chains' preview, which does not see it,
         then asks for centroidal accelerations LQP 1 does not meet.
         """
+        reduced = self.reduced if reduced is None else reduced
+        tasks = self.active_tasks if tasks is None else tasks
         masks = []
         for s in (state, generic_state(state)):
-            red = self.reduced.compute(s, fixed_base=False)
-            masks.append(
-                {t.task.name: red.reducible_rows(t.J) for t in self.evaluate_tasks(s, 0.0)}
-            )
+            red = reduced.compute(s, fixed_base=False)
+            masks.append({t.name: red.reducible_rows(t.evaluate(s, 0.0).J) for t in tasks})
         lqp1, lqp2 = {}, {}
-        for task in self.active_tasks:
+        for task in tasks:
             mask = masks[0][task.name] & masks[1][task.name]
             lqp1[task.name] = np.flatnonzero(mask)
             lqp2[task.name] = np.flatnonzero(~mask)
-        chain = [t.priority for t in self.active_tasks if lqp2[t.name].size]
+        chain = [t.priority for t in tasks if lqp2[t.name].size]
         return _RowSplit(lqp1, lqp2, min(chain, default=0))
 
     # -- LQP 1 ----------------------------------------------------------------------------------
@@ -904,7 +1004,7 @@ class RcLqp(NativeController):
         red = self.reduced.compute(state, fixed_base=cfg.assembly == "paper" or cfg.diagnostics)
         self.last_reduced = red
         if self._rows is None:
-            self._rows = self.row_split(state)
+            self._decide_rows(state)
 
         # the chains' centroidal accelerations: a level of LQP 1 (priority) or its energy's target
         preview = level = target = None

@@ -113,6 +113,21 @@ class ContactSchedule:
         out = [(a, c.frame) for c in self.contacts for a, _ in c.intervals if a > 0]
         return sorted(out)
 
+    def contact_sets(self) -> list[tuple[int, ...]]:
+        """Every non-empty set of contacts active together over the schedule as planned (each
+        touchdown at its scheduled time), in the order they first occur."""
+        times = sorted(
+            {0.0} | {x for c in self.contacts for span in c.intervals for x in span if x < INF}
+        )
+        out: list[tuple[int, ...]] = []
+        for t in times:
+            active = tuple(
+                i for i, c in enumerate(self.contacts) if any(a <= t < b for a, b in c.intervals)
+            )
+            if active and active not in out:
+                out.append(active)
+        return out
+
     def _start(self, i: int, k: int) -> float | None:
         """When interval k of contact i became (or becomes) active; None: not yet."""
         start = self.contacts[i].intervals[k][0]

@@ -38,8 +38,13 @@ WBCBENCH_BIND(rc_lqp, kController, m) {
 
   nb::class_<RcLqpTick, Tick>(m, "RcLqpTick", "The reduced-centroidal LQP's tick.")
       .def(nb::init<const std::string&, const std::vector<std::string>&,
-                    const std::vector<std::string>&, const SplitSpec&>(),
-           nb::arg("model"), nb::arg("task_frames"), nb::arg("contact_frames"), nb::arg("split"))
+                    const std::vector<std::string>&, const std::vector<SplitSpec>&>(),
+           nb::arg("model"), nb::arg("task_frames"), nb::arg("contact_frames"),
+           nb::arg("stances"),
+           "stances: the chain split of each contact set the tick may hold, the first for "
+           "every contact frame; a reduced model is built for each and kept")
+      .def("add_stance", &RcLqpTick::add_stance, nb::arg("split"),
+           "The chain split of a contact set first met after set-up (nothing if it has one)")
       .def("configure", &RcLqpTick::configure, nb::arg("settings"), nb::arg("rc"))
       .def("set_row_split", &RcLqpTick::set_row_split, nb::arg("lqp1_rows"))
       .def(

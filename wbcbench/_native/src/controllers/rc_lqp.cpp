@@ -49,14 +49,69 @@ double max_abs(const Eigen::Ref<const Vector>& x) {
 }  // namespace
 
 RcLqpTick::RcLqpTick(const std::string& model, const std::vector<std::string>& task_frames,
-                     const std::vector<std::string>& contact_frames, const SplitSpec& split)
-    : Tick(model, task_frames, contact_frames),
-      reduced_(dyn_, split),
-      fallback_(kPoolFallback, "fallback.") {
+                     const std::vector<std::string>& contact_frames,
+                     const std::vector<SplitSpec>& stances)
+    : Tick(model, task_frames, contact_frames), fallback_(kPoolFallback, "fallback.") {
   // the reduced model reads M⁻¹: RobotDynamics computes it by default
+  if (stances.empty() || stances.front().contact_frames != contact_frames)
+    throw std::invalid_argument("rc_lqp: the first stance must hold every contact frame");
+  for (const SplitSpec& split : stances) add_stance(split);
+  reduced_ = stances_.front().get();
   for (int pool = 0; pool < kPoolFallback; ++pool)
     hierarchies_.push_back(std::make_unique<Hierarchy>(pool));
   levels_.resize(kPoolFallback);
+}
+
+void RcLqpTick::add_stance(const SplitSpec& split) {
+  // the stance's contacts: its frames' indices, increasing (select_contacts checks the order)
+  std::vector<int> active;
+  for (const std::string& frame : split.contact_frames) {
+    const auto it = std::find(contact_frames_.begin(), contact_frames_.end(), frame);
+    if (it == contact_frames_.end())
+      throw std::invalid_argument("rc_lqp: the stance's contact frame '" + frame +
+                                  "' is not a contact frame of the tick");
+    active.push_back(static_cast<int>(it - contact_frames_.begin()));
+  }
+  for (const auto& stance : stances_)
+    if (stance->active_contacts() == active) return;
+  // the reduced model is built on the dynamics holding the stance's contacts (its buffers are
+  // sized for them); the held set is restored, and the next update() fills its buffers again
+  const std::vector<int> held = dyn_.active_contacts();
+  dyn_.select_contacts(active);
+  try {
+    stances_.push_back(std::make_unique<ReducedDynamics>(dyn_, split));
+  } catch (...) {
+    dyn_.select_contacts(held);
+    throw;
+  }
+  dyn_.select_contacts(held);
+}
+
+bool RcLqpTick::select_contacts(const std::vector<int>& active) {
+  ReducedDynamics* stance = nullptr;
+  for (const auto& s : stances_)
+    if (s->active_contacts() == active) stance = s.get();
+  if (stance == nullptr) {
+    std::string set;
+    for (int i : active) set += (set.empty() ? "" : ", ") + std::to_string(i);
+    throw std::invalid_argument("rc_lqp: no chain split for the contacts [" + set +
+                                "] (add_stance first)");
+  }
+  if (!Tick::select_contacts(active)) return false;
+  reduced_ = stance;
+  classified_ = false;
+  return true;
+}
+
+void RcLqpTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                                  const Eigen::Ref<const Vector>& uw) {
+  check_wrench_bounds("rc_lqp", s_.Cw, lw, uw);
+  const auto nw = lw.size();
+  s_.lw = lw;
+  s_.uw = uw;
+  l2_.head(nw) = lw;
+  u2_.head(nw) = uw;
+  fallback_.set_wrench_bounds(lw, uw);
 }
 
 void RcLqpTick::configure(const LexicographicSettings& settings, const RcLqpSettings& rc) {
@@ -65,9 +120,9 @@ void RcLqpTick::configure(const LexicographicSettings& settings, const RcLqpSett
   n_ = nv();
   k_ = k();
   nc_ = static_cast<int>(dyn_.contact_jacobian().rows());
-  n_p_ = reduced_.n_plain();
-  n_r_ = reduced_.n_reduced();
-  n_uc_ = static_cast<int>(reduced_.unconstrained().size());
+  n_p_ = reduced_->n_plain();
+  n_r_ = reduced_->n_reduced();
+  n_uc_ = static_cast<int>(reduced_->unconstrained().size());
   n_g_ = n_r_ - n_p_;
   nx1_ = n_r_ + nc_;
   const int nw = static_cast<int>(s_.Cw.rows());
@@ -80,8 +135,8 @@ void RcLqpTick::configure(const LexicographicSettings& settings, const RcLqpSett
   if (n_p_ < 6) throw std::invalid_argument("rc_lqp: the plain coordinates must hold the base");
   fallback_.configure(settings, n_, nc_, static_cast<int>(dyn_.constraint_jacobian().rows()));
 
-  plain_ = reduced_.split().plain;
-  uc_ = reduced_.unconstrained();
+  plain_ = reduced_->split().plain;
+  uc_ = reduced_->unconstrained();
   act_plain_.assign(plain_.begin() + 6, plain_.end());
   for (int& j : act_plain_) j -= 6;
   act_uc_ = uc_;
@@ -174,7 +229,7 @@ void RcLqpTick::set_row_split(const std::vector<std::vector<int>>& lqp1_rows) {
 // priority after priority by damped least squares in the coordinates u = Lᵀ q̈_uc, in the
 // null space of the priorities above; u = u0 + B q̈_p carried as one matrix [u0 B]
 void RcLqpTick::preview() {
-  const Matrix& Lt = reduced_.M_uc_factor();
+  const Matrix& Lt = reduced_->M_uc_factor();
   const auto plain = indices(plain_);
   const auto uc = indices(uc_);
   Matrix u = Matrix::Zero(n_uc_, 1 + n_p_);
@@ -222,18 +277,18 @@ void RcLqpTick::preview() {
   }
   // q̈_uc = L⁻ᵀ u; d = J_G q̈_uc + J̇_G q̇
   Lt.triangularView<Eigen::Upper>().solveInPlace(u);
-  D_.noalias() = reduced_.J_G() * u.rightCols(n_p_);
-  d0_ = reduced_.dJG_v();
-  d0_.noalias() += reduced_.J_G() * u.col(0);
+  D_.noalias() = reduced_->J_G() * u.rightCols(n_p_);
+  d0_ = reduced_->dJG_v();
+  d0_.noalias() += reduced_->J_G() * u.col(0);
 }
 
 // LQP 1's hard constraints and torque map Γ_p = G₁ x₁ + γ₁ at this tick (lqp1_levels' first
 // part), and M_r's Cholesky factor for its energy
 void RcLqpTick::prepare_lqp1() {
-  const Matrix& M_r = reduced_.M_r();
-  const Matrix& J_cr = reduced_.J_cr();
+  const Matrix& M_r = reduced_->M_r();
+  const Matrix& J_cr = reduced_->J_cr();
   const int n_act = n_p_ - 6;
-  nl_ = reduced_.b_r() + reduced_.g_r();
+  nl_ = reduced_->b_r() + reduced_->g_r();
   G1_.leftCols(n_r_) = M_r.middleRows(6, n_act);
   G1_.rightCols(nc_) = -J_cr.middleCols(6, n_act).transpose();
   gamma1_ = nl_.segment(6, n_act);
@@ -256,12 +311,12 @@ int RcLqpTick::lqp1_levels(std::vector<PriorityLevel>& levels, bool with_preview
   contacts.name = "lqp1.contacts";
   if (dyn_.constraint_map().size() == 0) {
     contacts.A.setZero(nc_, nx1_);
-    contacts.A.leftCols(n_r_) = reduced_.J_cr();
+    contacts.A.leftCols(n_r_) = reduced_->J_cr();
     contacts.b = -dyn_.contact_drift();
   } else {  // a point set's independent rows
     const Matrix& T = dyn_.constraint_map();
     contacts.A.setZero(T.rows(), nx1_);
-    contacts.A.leftCols(n_r_).noalias() = T * reduced_.J_cr();
+    contacts.A.leftCols(n_r_).noalias() = T * reduced_->J_cr();
     contacts.b = -dyn_.constraint_drift();
   }
   contacts.C = C2_;
@@ -285,7 +340,7 @@ int RcLqpTick::lqp1_levels(std::vector<PriorityLevel>& levels, bool with_preview
     v1_ = tasks_.drift()(r);
     v2_.resize(m);
     lv.A.setZero(m, nx1_);
-    reduced_.task(J_, v1_, lv.A.leftCols(n_r_), v2_);
+    reduced_->task(J_, v1_, lv.A.leftCols(n_r_), v2_);
     lv.b = tasks_.acc_ref()(r) - v2_;
     no_inequalities(lv, nx1_);
   }
@@ -354,7 +409,7 @@ int RcLqpTick::lqp2_levels(std::vector<PriorityLevel>& levels, const Vector& x1,
     gamma2_.noalias() = dyn_.M()(uc, plain) * qdd_plain;
     gamma2_ += dyn_.h()(uc);
   } else {
-    gamma2_ = reduced_.b_uc() + reduced_.g_uc();
+    gamma2_ = reduced_->b_uc() + reduced_->g_uc();
   }
   int count = 0;
   PriorityLevel& top = level_at(levels, count++);
@@ -363,11 +418,11 @@ int RcLqpTick::lqp2_levels(std::vector<PriorityLevel>& levels, const Vector& x1,
     top.A.resize(0, n_uc_);
     top.b.resize(0);
   } else {
-    top.A = reduced_.J_G();
-    top.b = x1.segment(n_p_, n_g_) - reduced_.dJG_v();
+    top.A = reduced_->J_G();
+    top.b = x1.segment(n_p_, n_g_) - reduced_->dJG_v();
   }
   top.C.resize(2 * n_uc_, n_uc_);
-  top.C.topRows(n_uc_) = reduced_.M_uc();
+  top.C.topRows(n_uc_) = reduced_->M_uc();
   top.C.bottomRows(n_uc_).setIdentity();
   top.l.resize(2 * n_uc_);
   top.u.resize(2 * n_uc_);
@@ -392,8 +447,8 @@ int RcLqpTick::lqp2_levels(std::vector<PriorityLevel>& levels, const Vector& x1,
   if (coupling_last) {
     PriorityLevel& lv = level_at(levels, count++);
     lv.name = "lqp2.coupling";
-    lv.A = reduced_.J_G();
-    lv.b = x1.segment(n_p_, n_g_) - reduced_.dJG_v();
+    lv.A = reduced_->J_G();
+    lv.b = x1.segment(n_p_, n_g_) - reduced_->dJG_v();
     no_inequalities(lv, n_uc_);
   }
   return count;
@@ -407,7 +462,7 @@ HierarchyResult RcLqpTick::solve_lqp2(int pool, std::vector<PriorityLevel>& leve
     levels[i].weight = s_.weights[std::min<size_t>(i, s_.weights.size() - 1)];
   PriorityLevel& f = level_at(levels, count);
   levels.resize(count + 1);
-  const Matrix& Lt = reduced_.M_uc_factor();
+  const Matrix& Lt = reduced_->M_uc_factor();
   f.name = "lqp2.energy";
   f.A = Lt;
   if (rc_.lqp2_energy == Lqp2Energy::kWhole) {
@@ -540,8 +595,8 @@ std::string RcLqpTick::assemble(const Vector& x1, const Vector* x2, Vector& qdd,
   if (rc_.assembly == Assembly::kPaper || rc_.diagnostics) {
     tau_paper_(indices(act_plain_)) = G1_ * x1 + nl_.segment(6, n_p_ - 6);
     if (n_uc_) {
-      v1_ = reduced_.b_uc() + reduced_.g_uc();
-      v1_.noalias() += reduced_.M_uc() * qdd(uc);
+      v1_ = reduced_->b_uc() + reduced_->g_uc();
+      v1_.noalias() += reduced_->M_uc() * qdd(uc);
       tau_paper_(indices(act_uc_)) = v1_;
     }
     d.assembly_diff = (tau - tau_paper_).cwiseAbs().maxCoeff();
@@ -552,8 +607,8 @@ std::string RcLqpTick::assemble(const Vector& x1, const Vector* x2, Vector& qdd,
   d.coupling_residual = kNaN;
   std::string why;
   if (n_uc_) {
-    v1_ = reduced_.dJG_v() - x1.segment(n_p_, n_g_);
-    v1_.noalias() += reduced_.J_G() * qdd(uc);
+    v1_ = reduced_->dJG_v() - x1.segment(n_p_, n_g_);
+    v1_.noalias() += reduced_->J_G() * qdd(uc);
     d.coupling_residual = max_abs(v1_);
     if (d.coupling_residual > tol)
       why = "eq. (30) not met (residual " + g3(d.coupling_residual) + ")";
@@ -597,7 +652,7 @@ bool RcLqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
     level_failed_ = true;  // (no level: the caller says the data hold a NaN)
     return done(false);
   }
-  reduced_time_ = reduced_.compute(rc_.assembly == Assembly::kPaper || rc_.diagnostics);
+  reduced_time_ = reduced_->compute(rc_.assembly == Assembly::kPaper || rc_.diagnostics);
   if (!classified_) throw std::logic_error("rc_lqp: run before set_row_split");
   const auto tp = Clock::now();
   prepare_lqp1();  // (the reference builds these inside LQP 1's formulation)

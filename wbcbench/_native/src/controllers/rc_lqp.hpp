@@ -53,10 +53,22 @@ enum RcLqpPool : int {
 
 class RcLqpTick : public Tick {
  public:
-  // split: the chain split (wbcbench.dynamics.chains.split_chains, computed in Python once),
-  // for the contact frames `contact_frames`
+  // stances: the chain split of each contact set the tick may hold
+  // (wbcbench.dynamics.chains.split_chains, computed in Python once per set), each for a subset
+  // of `contact_frames` in their order; the first for every contact frame (the set the tick
+  // holds until select_contacts). A reduced model is built for each, here, and kept.
   RcLqpTick(const std::string& model, const std::vector<std::string>& task_frames,
-            const std::vector<std::string>& contact_frames, const SplitSpec& split);
+            const std::vector<std::string>& contact_frames,
+            const std::vector<SplitSpec>& stances);
+  // one more stance (a contact set first met after set-up); nothing if its set has one
+  void add_stance(const SplitSpec& split);
+  // the contacts the tick holds and the reduced model of their stance (RcLqp.contacts_changed);
+  // the settings and the row split for the new set follow (configure, set_row_split). Throws
+  // std::invalid_argument for a set with no stance.
+  bool select_contacts(const std::vector<int>& active) override;
+  // the ramped bounds into LQP 1's contacts level, the wrench check and the full-model LQP's
+  void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
+                         const Eigen::Ref<const Vector>& uw) override;
   void configure(const LexicographicSettings& settings, const RcLqpSettings& rc);
   // the whole tick at (q, v, t), its QPs solved by `solver`; false when it failed (message(),
   // and when a hierarchy failed, level_failed() and failed_level())
@@ -64,7 +76,8 @@ class RcLqpTick : public Tick {
            LevelSolver& solver);
 
   // the row split of RcLqp.row_split: per task (the tick's order), the task's rows that go to
-  // LQP 1; set once, before the first run
+  // LQP 1 (none for a task the configured groups do not hold); set after every configure,
+  // before the next run
   void set_row_split(const std::vector<std::vector<int>>& lqp1_rows);
 
   // solver handles pool `pool` may use (a bound: the level count depends on the row split)
@@ -102,7 +115,7 @@ class RcLqpTick : public Tick {
   double lqp2_time() const { return lqp2_time_; }
   double fallback_time() const { return fallback_time_; }
 
-  const ReducedDynamics& reduced() const { return reduced_; }
+  const ReducedDynamics& reduced() const { return *reduced_; }
   // the row split (task rows of each priority group, as rows of the stacked tasks) and the
   // preview d = D q̈_p + d0 of the last tick, for tests
   const std::vector<std::vector<int>>& lqp1_rows() const { return rows1_; }
@@ -139,12 +152,14 @@ class RcLqpTick : public Tick {
 
   LexicographicSettings s_;
   RcLqpSettings rc_;
-  ReducedDynamics reduced_;
+  // the reduced model of each stance (built once, kept) and the one of the held contacts
+  std::vector<std::unique_ptr<ReducedDynamics>> stances_;
+  ReducedDynamics* reduced_ = nullptr;
   int n_ = 0, k_ = 0, nc_ = 0, n_p_ = 0, n_r_ = 0, n_uc_ = 0, n_g_ = 0, nx1_ = 0;
   std::vector<int> plain_, uc_, act_plain_, act_uc_;
   Vector tau_max_p_, tau_max_uc_;
 
-  // the row split, set once from Python (structural)
+  // the row split, set from Python (structural) for the configured stance
   bool classified_ = false;
   std::vector<std::vector<int>> rows1_, rows2_;
   int chain_priority_ = 0;

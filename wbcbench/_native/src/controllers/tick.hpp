@@ -51,7 +51,7 @@ class Tick {
   // when its settings for the new set (wrench inequalities, tasks) are handed over again
   // (configure), which sizes them. The same set again does nothing and allocates nothing.
   // Returns whether the set changed.
-  bool select_contacts(const std::vector<int>& active);
+  virtual bool select_contacts(const std::vector<int>& active);
   // This tick's bounds lw ≤ Cw f ≤ uw on the active contacts' wrench rows (the normal-force
   // bounds of a contact that unloads or has just landed), (nw,) each as the configured Cw's
   // rows; copied into the QPs without allocating. A tick that does not follow a contact

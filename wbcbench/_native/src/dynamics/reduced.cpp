@@ -31,6 +31,13 @@ Eigen::Map<const Eigen::ArrayXi> indices(const std::vector<int>& idx) {
   return {idx.data(), static_cast<Eigen::Index>(idx.size())};
 }
 
+// the frames of the contacts `active` of dyn
+std::vector<std::string> active_frames(const RobotDynamics& dyn, const std::vector<int>& active) {
+  std::vector<std::string> out;
+  for (int i : active) out.push_back(dyn.contact_frames().at(i));
+  return out;
+}
+
 // [v]ₓ: [v]ₓ w = v × w
 Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
   Eigen::Matrix3d S;
@@ -43,10 +50,11 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
 // ReducedDynamics.__init__: the split checked, every buffer sized, the plain rows of J_r set.
 ReducedDynamics::ReducedDynamics(RobotDynamics& dyn, SplitSpec split)
     : dyn_(dyn), split_(std::move(split)), n_(dyn.nv()) {
-  if (split_.contact_frames != dyn.contact_frames())
+  active_ = dyn.active_contacts();
+  if (split_.contact_frames != active_frames(dyn, active_))
     throw std::invalid_argument("reduced dynamics: the split is for the contact frames " +
                                 joined(split_.contact_frames) + " but the dynamics has " +
-                                joined(dyn.contact_frames()));
+                                joined(active_frames(dyn, active_)));
   // every velocity index exactly once: in the plain coordinates or in one chain
   std::vector<int> seen(n_, 0);
   auto mark = [&](int k, const std::string& where) {
@@ -173,6 +181,10 @@ double ReducedDynamics::compute(bool fixed_base) {
   if (!dyn_.inverse())
     throw std::logic_error("reduced dynamics: the RobotDynamics must compute M⁻¹ "
                            "(set_inverse(true))");
+  if (dyn_.active_contacts() != active_)
+    throw std::logic_error("reduced dynamics: the split is for the contacts " +
+                           joined(active_frames(dyn_, active_)) + " but the dynamics holds " +
+                           joined(active_frames(dyn_, dyn_.active_contacts())));
   const Vector& v = dyn_.v();
   // the chains' relative motion: one pass per chain with only its velocities (the base and
   // constraint chain frozen); with one chain this is the Python's single pass
@@ -219,7 +231,9 @@ double ReducedDynamics::compute(bool fixed_base) {
   Jbar_r_.noalias() = JMinv_.transpose() * M_r_;
   // eq. (15): J_c,rᵀ = [S_vcᵀ S_ccᵀ 0]ᵀ J_cᵀ, i.e. J_c's plain columns and zeros for the
   // chains' coordinates (J_c has no column in a chain)
-  J_cr_.leftCols(n_p_) = dyn_.contact_jacobian()(Eigen::all, indices(split_.plain));
+  const Matrix& Jc = dyn_.contact_jacobian();
+  if (J_cr_.rows() != Jc.rows()) J_cr_.setZero(Jc.rows(), n_r_);  // points set after set-up
+  J_cr_.leftCols(n_p_) = Jc(Eigen::all, indices(split_.plain));
 
   // eq. (17): M_uc = M[uc, uc], g_uc = g[uc]; b_uc from one RNEA with only the chains'
   // velocities (the chains on their parent bodies held still)

@@ -56,14 +56,16 @@ struct ChainCentroid {
 // Mirrors ReducedDynamics + ReducedModel. n_r = n_plain + 6 · n_chains; n_uc = Σ n_u.
 class ReducedDynamics {
  public:
-  // dyn must outlive this object and have the split's contact frames; split must be a
+  // dyn must outlive this object and hold the split's contact frames as its active contacts
+  // (RobotDynamics::select_contacts; a stance of a changing contact set); split must be a
   // partition of dyn's velocity indices with valid joint ids. Throws std::invalid_argument
   // otherwise.
   ReducedDynamics(RobotDynamics& dyn, SplitSpec split);
 
   // Every quantity below at dyn's last update(); fixed_base adds eq. (17)'s b_uc (one more
   // RNEA), else b_uc is NaN. Returns the time it took [s] (also time()). Throws
-  // std::logic_error when dyn does not compute M⁻¹ (set_inverse(false)) and
+  // std::logic_error when dyn does not compute M⁻¹ (set_inverse(false)) or holds other
+  // contacts than the split's (active_contacts()), and
   // std::runtime_error when J_r M⁻¹ J_rᵀ or M_uc is not positive definite (e.g. before the
   // first update()).
   double compute(bool fixed_base);
@@ -80,6 +82,8 @@ class ReducedDynamics {
 
   RobotDynamics& dynamics() const { return dyn_; }
   const SplitSpec& split() const { return split_; }
+  // the contacts of the split: indices into dyn's contact frames
+  const std::vector<int>& active_contacts() const { return active_; }
   int n_plain() const { return n_p_; }
   int n_reduced() const { return n_r_; }
   int n_chains() const { return static_cast<int>(chains_.size()); }
@@ -106,6 +110,7 @@ class ReducedDynamics {
 
   RobotDynamics& dyn_;
   SplitSpec split_;
+  std::vector<int> active_;
   int n_, n_p_, n_r_, n_uc_;
   std::vector<int> uc_;          // ChainSplit.unconstrained
   std::vector<int> uc_offset_;   // column of each chain in q̈_uc
