@@ -30,7 +30,6 @@ async``). This module also holds what both OSF controllers share (:class:`OsfCon
 
 from __future__ import annotations
 
-from itertools import pairwise
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -200,7 +199,7 @@ class OsfControllerBase(NativeController):
         first tick selects its set as before."""
         held = ("frames", "contacts", "Cw", "lw", "uw", "nc", "active_tasks", "active_contacts")
         before = {a: getattr(self, a) for a in (*held, *self.set_attrs)}
-        for t in scheduled_instants(schedule):
+        for t, _ in schedule.set_instants():
             self.select_contacts(t)
             if self.active_contacts not in self._tick_settings:
                 self._tick_settings[self.active_contacts] = self.tick_settings()
@@ -381,16 +380,6 @@ class OsfControllerBase(NativeController):
             diagnostics=self.base_diagnostics(read),
             problems=problems if self.ctx.keep_problems else [],
         )
-
-
-def scheduled_instants(schedule: ContactSchedule) -> list[float]:
-    """An instant [s] inside each stretch of time between two of the schedule's interval ends
-    (touchdowns as scheduled), the last one after them all: every contact set it holds."""
-    ends = {0.0} | {
-        x for c in schedule.contacts for interval in c.intervals for x in interval if x < np.inf
-    }
-    times = sorted(ends)
-    return [(a + b) / 2 for a, b in pairwise(times)] + [times[-1] + 1.0]
 
 
 #: why a tick with ``internal: basis`` failed when G's first contact block is singular

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from itertools import pairwise
 
 import numpy as np
 
@@ -116,16 +117,23 @@ class ContactSchedule:
     def contact_sets(self) -> list[tuple[int, ...]]:
         """Every non-empty set of contacts active together over the schedule as planned (each
         touchdown at its scheduled time), in the order they first occur."""
-        times = sorted(
+        return [active for _, active in self.set_instants()]
+
+    def set_instants(self) -> list[tuple[float, tuple[int, ...]]]:
+        """For each set of :meth:`contact_sets`, an instant [s] at which the schedule as planned
+        holds it: the middle of the first stretch between two interval ends where it is active
+        (after the last end: a second past it)."""
+        ends = sorted(
             {0.0} | {x for c in self.contacts for span in c.intervals for x in span if x < INF}
         )
-        out: list[tuple[int, ...]] = []
-        for t in times:
+        instants = [(a + b) / 2 for a, b in pairwise(ends)] + [ends[-1] + 1.0]
+        out: list[tuple[float, tuple[int, ...]]] = []
+        for t in instants:
             active = tuple(
                 i for i, c in enumerate(self.contacts) if any(a <= t < b for a, b in c.intervals)
             )
-            if active and active not in out:
-                out.append(active)
+            if active and all(active != seen for _, seen in out):
+                out.append((t, active))
         return out
 
     def _start(self, i: int, k: int) -> float | None:
