@@ -39,6 +39,24 @@ Matrix null_projector(const Matrix& A) {
   return P;
 }
 
+// From Eᵀ P = Q R of rank r: the row-space basis R = Q₁ᵀ (r, n) and the null-space basis
+// Z = Q₂ (n, n − r) of E, where asked for (non-null); only those columns of Q are formed, the
+// reflectors applied to the identity's columns.
+void bases(const Eigen::ColPivHouseholderQR<Matrix>& qr, int rank, Matrix* R, Matrix* Z) {
+  const Index n = qr.rows();
+  if (R) {
+    Matrix Q1 = Matrix::Identity(n, rank);
+    Q1.applyOnTheLeft(qr.householderQ());
+    *R = Q1.transpose();
+  }
+  if (Z) {
+    Matrix Q2 = Matrix::Zero(n, n - rank);
+    Q2.bottomRows(n - rank).setIdentity();
+    Q2.applyOnTheLeft(qr.householderQ());
+    *Z = std::move(Q2);
+  }
+}
+
 // Row-space basis R, null-space basis Z and minimum-norm solution x_p of A x = b, one QR.
 // R or Z may be null: only the columns of Q asked for are formed (the reflectors applied to the
 // identity's columns), which is most of the cost on a wide A.
@@ -52,17 +70,7 @@ void hard_factor(const Matrix& A, const Vector& b, Matrix* R, Matrix* Z, Vector&
   }
   Eigen::ColPivHouseholderQR<Matrix> qr(A.transpose());  // Aᵀ P = Q R
   const int rank = qr_rank(qr, kRankTol);
-  if (R) {
-    Matrix Q1 = Matrix::Identity(n, rank);
-    Q1.applyOnTheLeft(qr.householderQ());
-    *R = Q1.transpose();
-  }
-  if (Z) {
-    Matrix Q2 = Matrix::Zero(n, n - rank);
-    Q2.bottomRows(n - rank).setIdentity();
-    Q2.applyOnTheLeft(qr.householderQ());
-    *Z = std::move(Q2);
-  }
+  bases(qr, rank, R, Z);
   if (rank == A.rows()) {
     // Pᵀ A = Rᵀ Qᵀ: x = Q₁ y with R₁ᵀ y = Pᵀ b is the minimum-norm solution
     const Vector pb = qr.colsPermutation().transpose() * b;
@@ -186,18 +194,7 @@ void row_space_and_null_space(const Matrix& E, Matrix* R, Matrix* Z, double tol)
   }
   Eigen::ColPivHouseholderQR<Matrix> qr(E.transpose());
   const int rank = qr_rank(qr, tol);
-  // only the columns of Q asked for: the reflectors applied to the identity's columns
-  if (R) {
-    Matrix Q1 = Matrix::Identity(n, rank);
-    Q1.applyOnTheLeft(qr.householderQ());
-    *R = Q1.transpose();
-  }
-  if (Z) {
-    Matrix Q2 = Matrix::Zero(n, n - rank);
-    Q2.bottomRows(n - rank).setIdentity();
-    Q2.applyOnTheLeft(qr.householderQ());
-    *Z = std::move(Q2);
-  }
+  bases(qr, rank, R, Z);
 }
 
 void row_space_and_null_space(const Matrix& E, Matrix& R, Matrix& Z, double tol) {
