@@ -92,14 +92,17 @@ VARIANT_SOLVERS = ["quadprog", "daqp", "qpoases", "clarabel"]
 #: own termination tolerance (≈ 1e-9 relative) rather than at round-off, which on
 #: tocabi_stand_sway moved τ up to 29 times the spread; eiquadprog stops once the summed
 #: infeasibility is below n_in·ε·tr(H)·tr(L⁻ᵀ)·100 (its condition estimate), which there moved
-#: τ up to 16 times the spread. DAQP: the module compiles DAQP's C sources and the Python
-#: backend runs the wheel's build of them; on the single-support state whose step re-plans and
-#: falls back to the full-model LQP, under OPENBLAS_CORETYPE=Prescott, the C++-called DAQP's
-#: answer moved τ 1.5e-2 (relative) from the Python reference's where the strategies' spread is
-#: 1.0e-4 (150 times), while the native tick with the Python-called DAQP on the same native data
-#: agrees: a fallback level whose answer moves with the solver build's rounding (an open
-#: defect, not explained further; docs/native.md)
-SPREAD_FACTOR = {"qpoases": 100.0, "eiquadprog": 100.0, "daqp": 200.0}
+#: τ up to 16 times the spread
+SPREAD_FACTOR = {"qpoases": 100.0, "eiquadprog": 100.0}
+#: on a state whose step falls back to the full-model LQP, the answers are held to that LQP's
+#: per-level slacks, not to τ. DAQP is called from C++ through the module's own build of its C
+#: sources and from Python through the wheel's build of them, which round differently; on the
+#: single-support state that falls back, under OPENBLAS_CORETYPE=Prescott (which changes the
+#: random states), the C++-called DAQP's last fallback level came out 6.2e-5 (relative) above
+#: the Python reference's, whose two strategies agree to 2e-7, while every level above agrees
+#: to 3e-6 (τ then moved 3e-2 relative): that level may lie this far above its optimum with
+#: DAQP (an open defect, docs/native.md)
+DAQP_FALLBACK_LAST = 1e-4
 #: the step's timing stages every tick reports, in both impls
 STAGES = {"dynamics", "build", "solve", "total", "reduced", "lqp1", "lqp2", "fallback"}
 #: the levels a sequential LQP holds hard inside the next level's QP (``hard_if_feasible``: LQP
@@ -186,6 +189,22 @@ def check_stages(a: Any, b: Any) -> None:
     assert levels_a ^ levels_b <= HELD, (levels_a - levels_b, levels_b - levels_a)
 
 
+def fallback_levels(ctrl: Any, robot: Any, q: Any, v: Any, t: float, out: Any) -> list[float]:
+    """The norm of each level's slack (w, v) that an answer of the full-model LQP leaves, on
+    the Python reference's levels of that state: what the fallback's hierarchy fixes."""
+    state = RobotState(robot, q, v)
+    _, levels, _, _, _ = ctrl.full.hierarchy(state, ctrl.evaluate_tasks(state, t))
+    x = np.concatenate([out.qdd, out.wrench])
+    norms = []
+    for lv in levels:
+        w = lv.A @ x - lv.b
+        if lv.C is not None and lv.C.shape[0]:
+            cx = lv.C @ x
+            w = np.concatenate([w, cx - np.clip(cx, lv.l, lv.u)])
+        norms.append(float(np.linalg.norm(w)))
+    return norms
+
+
 def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
     backend = solver.removeprefix("qpsolvers:")
     # coupling_priority's re-solve of LQP 1 is nearly degenerate: its optimum is not unique, and
@@ -212,7 +231,7 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
     spread: dict[tuple[float, float], float] = {}
     compared: list[tuple[tuple[float, float], float]] = []
     slack_diffs: list[tuple[str, float]] = []
-    spread_slacks, mismatched, both_failed = 0.0, 0, 0
+    spread_slacks, mismatched, both_failed, fell_back = 0.0, 0, 0, 0
     for _ in range(STATES):
         q, v = grounded_state(robot, keyframe, frames, rng, q_noise=0.05, v_noise=0.2)
         t = float(rng.uniform(*window))
@@ -260,6 +279,26 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
             mismatched += 1
             assert mismatched <= 2, (branch(a), branch(b))
             continue
+        if exact and branch(a)[1] and branch(b)[1]:
+            # both fell back to the full-model LQP: its levels' optima agree; its τ is not held
+            # to the strategies' spread (measured under OPENBLAS_CORETYPE=Prescott: τ 3e-2 apart
+            # with the C++-built DAQP where the two Python strategies differ by 1e-4, while
+            # every level's slack agrees; the last level's optimum is ill-conditioned there)
+            c = spread_ref.step(RobotState(robot, q, v), t)
+            ref = fallback_levels(python, robot, q, v, t, b)
+            got = fallback_levels(python, robot, q, v, t, a)
+            other = (
+                fallback_levels(python, robot, q, v, t, c)
+                if c.ok and branch(c)[1] and within_limits(spread_ref, c)
+                else ref
+            )
+            for i, (x, y, z) in enumerate(zip(got, ref, other, strict=True)):
+                tol = 3e-6 * max(1.0, abs(y)) + 10 * abs(z - y)
+                if backend == "daqp" and i == len(got) - 1:
+                    tol = max(tol, DAQP_FALLBACK_LAST * max(1.0, abs(y)))
+                assert abs(x - y) <= tol, (got, ref, other)
+            fell_back += 1
+            continue
         if exact:
             c = spread_ref.step(RobotState(robot, q, v), t)
             c_ok = c.ok and within_limits(spread_ref, c)
@@ -271,7 +310,7 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
             pairs = zip((a.tau, a.qdd, a.wrench), (b.tau, b.qdd, b.wrench), strict=True)
             compared.append((branch(b), max(relative(x, y) for x, y in pairs)))
     if backend == "quadprog" and exact:  # the reference backend: agreement on nearly every state
-        assert len(compared) + both_failed >= STATES - 1, (len(compared), both_failed)
+        assert len(compared) + fell_back + both_failed >= STATES - 1, (len(compared), both_failed)
     tol = max(3e-6, 10 * spread_slacks) if exact else 1e-3
     for key, diff in slack_diffs:
         assert diff <= tol, (key, diff, tol)
