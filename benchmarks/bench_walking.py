@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from wbcbench.bench.run_metrics import run_metrics
+from wbcbench.bench.run_metrics import run_metrics, walk_phases
 from wbcbench.controllers.registry import controller_class
 from wbcbench.report.walking import walk_figure
 from wbcbench.runs import plan_run
@@ -78,15 +78,10 @@ def walk_row(
 
 
 def tick_phases(active: list[tuple[int, ...]]) -> dict[str, np.ndarray]:
-    """Masks of the ticks by phase from each tick's active contacts: ``transition`` where the
-    set differs from the previous tick's, else ``double`` (two or more) or ``single``."""
-    count = np.array([len(a) for a in active])
-    changed = np.array([i > 0 and a != active[i - 1] for i, a in enumerate(active)])
-    return {
-        "double": (count >= 2) & ~changed,
-        "single": (count == 1) & ~changed,
-        "transition": changed,
-    }
+    """Masks of the ticks by phase (:func:`~wbcbench.bench.run_metrics.walk_phases`) from each
+    tick's active contacts, as a run's ``active.<contact>`` columns."""
+    contacts = sorted({i for a in active for i in a})
+    return walk_phases({f"active.{i}": np.array([i in a for a in active]) for i in contacts})
 
 
 def keep_active(replayer: Replayer, sets: list[tuple[int, ...]]) -> Any:

@@ -101,9 +101,7 @@ void HqpTick::configure(const HqpSettings& settings) {
 
 void HqpTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                                 const Eigen::Ref<const Vector>& uw) {
-  check_wrench_bounds("hqp", s_.Cw, lw, uw);
-  s_.lw = lw;
-  s_.uw = uw;
+  store_wrench_bounds("hqp", s_, lw, uw);
   hard_.l = lw;
   hard_.u = uw;
 }

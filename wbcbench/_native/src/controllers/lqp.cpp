@@ -75,10 +75,8 @@ void FullLqp::configure(const LexicographicSettings& settings, int n, int nc, in
 
 void FullLqp::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                                 const Eigen::Ref<const Vector>& uw) {
-  check_wrench_bounds("lqp", s_.Cw, lw, uw);
+  store_wrench_bounds("lqp", s_, lw, uw);
   const auto nw = lw.size();
-  s_.lw = lw;
-  s_.uw = uw;
   levels_[0].l.head(nw) = lw;
   levels_[0].u.head(nw) = uw;
 }

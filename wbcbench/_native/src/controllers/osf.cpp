@@ -111,13 +111,6 @@ void OsfTick::evaluate_osf(const Eigen::Ref<const Vector>& q, const Eigen::Ref<c
   }
 }
 
-void OsfTick::store_wrench_bounds(const char* controller, const Eigen::Ref<const Vector>& lw,
-                                  const Eigen::Ref<const Vector>& uw) {
-  check_wrench_bounds(controller, os_.Cw, lw, uw);
-  os_.lw = lw;  // (the same sizes: no allocation)
-  os_.uw = uw;
-}
-
 void OsfTick::realise(const Vector& dist) {
   const int L = levels();
   tau_ = dist;

@@ -56,10 +56,6 @@ class OsfTick : public Tick {
   // configure() again for a new contact set re-sizes what depends on it and drops the
   // parameters of the old set: the next tick computes a set for the new one
   void configure_osf(const OsfSettings& s, bool affine);
-  // the ramped normal-force bounds of the active contacts (Tick::set_wrench_bounds), read by
-  // the next build
-  void store_wrench_bounds(const char* controller, const Eigen::Ref<const Vector>& lw,
-                           const Eigen::Ref<const Vector>& uw);
   // dynamics, tasks and (when due) the parameters at (q, v, t); the tick counter advances
   void evaluate_osf(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v,
                     double t);

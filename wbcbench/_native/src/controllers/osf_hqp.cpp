@@ -40,7 +40,7 @@ void OsfHqpTick::configure(const OsfHqpSettings& settings) {
 
 void OsfHqpTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                                    const Eigen::Ref<const Vector>& uw) {
-  store_wrench_bounds("osf_hqp", lw, uw);
+  store_wrench_bounds("osf_hqp", os_, lw, uw);
 }
 
 bool OsfHqpTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v,

@@ -102,10 +102,8 @@ bool QpWbcTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
 
 void QpWbcTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                                   const Eigen::Ref<const Vector>& uw) {
-  check_wrench_bounds("qp_wbc", s_.Cw, lw, uw);
+  store_wrench_bounds("qp_wbc", s_, lw, uw);
   const auto nw = lw.size();
-  s_.lw = lw;
-  s_.uw = uw;
   qp_.l.head(nw) = lw;
   qp_.u.head(nw) = uw;
 }

@@ -105,10 +105,8 @@ bool RcLqpTick::select_contacts(const std::vector<int>& active) {
 
 void RcLqpTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                                   const Eigen::Ref<const Vector>& uw) {
-  check_wrench_bounds("rc_lqp", s_.Cw, lw, uw);
+  store_wrench_bounds("rc_lqp", s_, lw, uw);
   const auto nw = lw.size();
-  s_.lw = lw;
-  s_.uw = uw;
   l2_.head(nw) = lw;
   u2_.head(nw) = uw;
   fallback_.set_wrench_bounds(lw, uw);

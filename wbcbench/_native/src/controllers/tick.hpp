@@ -28,6 +28,16 @@ inline double seconds_since(Clock::time_point t0) {
 void check_wrench_bounds(const char* controller, const Matrix& Cw,
                          const Eigen::Ref<const Vector>& lw, const Eigen::Ref<const Vector>& uw);
 
+// Tick::set_wrench_bounds's common part: checks lw and uw against the settings' wrench rows
+// (s.Cw) and keeps them as s.lw, s.uw (the same sizes: no allocation).
+template <class Settings>
+void store_wrench_bounds(const char* controller, Settings& s, const Eigen::Ref<const Vector>& lw,
+                         const Eigen::Ref<const Vector>& uw) {
+  check_wrench_bounds(controller, s.Cw, lw, uw);
+  s.lw = lw;
+  s.uw = uw;
+}
+
 // The robot's dynamics and tasks of one controller.
 class Tick {
  public:

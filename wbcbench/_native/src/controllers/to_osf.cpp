@@ -113,7 +113,7 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
 
 void ToOsfTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                                   const Eigen::Ref<const Vector>& uw) {
-  store_wrench_bounds("to_osf", lw, uw);
+  store_wrench_bounds("to_osf", os_, lw, uw);
 }
 
 bool ToOsfTick::internal_basis() {
