@@ -14,11 +14,12 @@ way. So, on each state both impls solve:
 
 * every level's optimal slack norms agree, to 3e-6 relative with an active-set backend (1e-5
   with a regularising one, see below) and 1e-3 with an iterative one, or to 10 times the
-  difference the two Python strategies show on the same state where that is larger. A level's optimum moves with the optimal slacks held from
-  the levels above, by their multipliers times the change (the optimal value is convex in the
-  held right-hand sides): rounding-level differences of a held slack whose multiplier is large
-  move it beyond 3e-6 (measured: w.p5 of lqp on a wall state 7.2e-6 apart under one BLAS
-  kernel, equal to that sensitivity bound), and the strategies' spread measures it;
+  difference the two Python strategies show on the same state where that is larger. A level's
+  optimum moves with the optimal slacks held from the levels above, by their multipliers times
+  the change (the optimal value is convex in the held right-hand sides): rounding-level
+  differences of a held slack whose multiplier is large move it beyond 3e-6 (measured: w.p5 of
+  lqp on a wall state 7.2e-6 apart under one BLAS kernel, equal to that sensitivity bound), and
+  the strategies' spread measures it;
 * a state on which either impl retried a level with the proximal term is not compared: that
   impl solved the regularised level, whose optimum lies up to ½ρ‖x* − x_c‖² above the bare
   level's (DAQP, whose automatic proximal iterations engage or not on a numerically singular
