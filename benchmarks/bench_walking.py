@@ -104,7 +104,10 @@ def replay_table(
     recording = record_states(source)
     replayers: dict[tuple[str, str], Replayer] = {}
     active: dict[tuple[str, str], list[tuple[int, ...]]] = {}
-    for controller in controllers:
+    for spec in controllers:
+        # a row may carry settings: "hqp:strategy=nullspace:prox=1e-6"
+        controller, *settings = spec.split(":")
+        config = dict(kv.split("=", 1) for kv in settings)
         cls = controller_class(controller)
         for impl in impls:
             if impl == "native" and not cls.native_schedule:
@@ -114,11 +117,11 @@ def replay_table(
                 controller,
                 solver,
                 mode=mode,
-                config={"impl": impl},
+                config={**config, "impl": impl},
                 overrides=overrides,
                 timing=True,
             )
-            key = (controller, impl)
+            key = (spec, impl)
             sets = active[key] = []
             replayer = Replayer(run, recording)
             replayer.on_step = keep_active(replayer, sets)
@@ -172,7 +175,11 @@ def replay_table(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--controllers", default=",".join(CONTROLLERS))
+    parser.add_argument(
+        "--controllers",
+        default=",".join(CONTROLLERS),
+        help="comma-separated; with --replay a row may carry settings: hqp:strategy=nullspace",
+    )
     parser.add_argument("--solver", default="daqp")
     parser.add_argument("--impls", default="python,native", help="python, native or both")
     parser.add_argument("--set", action="append", default=[], help="scenario override")
