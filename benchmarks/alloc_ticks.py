@@ -11,9 +11,11 @@ libstdc++ (``operator new``, whoever calls it during the step) and from the QP b
 libraries (DAQP, built next to the module; qpOASES, eiquadprog). Python's and NumPy's own
 allocations are not counted.
 
-Ticks are split into *steady* ticks (the contact set is the previous tick's) and *change* ticks
-(lift-off, touchdown: the set differs), the first ``WARMUP`` ticks left out (the first solves
-build the solvers' objects). Prints, per controller and kind of tick, the ticks counted and the
+Ticks are split into *steady* ticks (the contact set is the previous tick's), *change* ticks (a
+lift-off or a touchdown to a set the tick held before in the run) and *first* ticks (to a set
+held for the first time: the first lift-off of each foot, whose QPs' solvers build their
+objects then), the first ``WARMUP`` ticks left out (the first solves build the solvers'
+objects). Prints, per controller and kind of tick, the ticks counted and the
 mean and max allocations per tick by library; ``--json`` prints the same as one JSON object
 (what ``tests/test_native_alloc.py`` reads).
 """
@@ -38,6 +40,9 @@ LIBRARIES = {
     "qpOASES": "libqpOASES",
     "eiquadprog": "libeiquadprog",
 }
+#: the kinds of tick: the contact set is the last tick's, a set the tick held before, a set held
+#: for the first time in the run
+KINDS = ("steady", "change", "first")
 #: ticks left out at the start (the solvers' first objects), and the walk recorded
 WARMUP = 20
 OVERRIDES = [
@@ -109,7 +114,8 @@ def count(controllers: list[str], solver: str, mode: str) -> dict[str, Any]:
         ctrl = run.make_controller()
         data = ctrl.ctx.robot.pin_model.createData()
         libs: list[str] = []
-        ticks: dict[str, list[dict[str, int]]] = {"steady": [], "change": []}
+        ticks: dict[str, list[dict[str, int]]] = {kind: [] for kind in KINDS}
+        held: set[Any] = set()
         failed: list[str] = []
         for i in range(len(rec)):
             state = RobotState(ctrl.ctx.robot, rec.q[i], rec.v[i], data)
@@ -117,6 +123,7 @@ def count(controllers: list[str], solver: str, mode: str) -> dict[str, Any]:
                 ctrl.start(state)
                 libs = watch(counter)  # the module and the backends are loaded by now
             before = ctrl.tick_contacts
+            held.add(before)
             for k in range(len(libs)):
                 counter.wbcbench_alloc_take(k)
             counter.wbcbench_alloc_count(1)
@@ -126,7 +133,10 @@ def count(controllers: list[str], solver: str, mode: str) -> dict[str, Any]:
             if not result.ok:
                 failed.append(f"tick {i}: {result.message}")
             elif i >= WARMUP:  # (a failed tick's solver starts afresh: not a tick to count)
-                ticks["change" if ctrl.tick_contacts != before else "steady"].append(counts)
+                kind = "steady" if ctrl.tick_contacts == before else "change"
+                if kind == "change" and ctrl.tick_contacts not in held:
+                    kind = "first"
+                ticks[kind].append(counts)
         out[name] = {
             kind: {
                 "ticks": len(rows),
