@@ -53,10 +53,6 @@ KNOWN: dict[tuple[str, str, str], tuple[int, str]] = {
     ("lqp", "first", "daqp"): (86, "DAQP's set-up of the new sizes' workspaces"),
     ("rc_lqp", "change", "daqp"): (143, "DAQP's set-up of the new sizes' workspaces"),
     ("rc_lqp", "first", "daqp"): (143, "DAQP's set-up of the new sizes' workspaces"),
-    # qp_wbc's first tick on a contact set: that set's C++ solver makes its first object (its
-    # copies of the QP, sized once)
-    ("qp_wbc", "first", "core"): (36, "the set's C++ solver's first object"),
-    ("qp_wbc", "first", "libstdc++"): (2, "the set's C++ solver's first object"),
     # the hierarchy's level solves (qp/hierarchy.cpp) and their records (NativeSolvers); a
     # change of contacts configures the tick again (its levels and slots re-sized)
     ("hqp", "steady", "core"): (240, "the hierarchy's level solves"),

@@ -217,6 +217,12 @@ class QpCall:
         self.sink: list[tuple[Problem, Solution]] | None = getattr(handle, "sink", None)
         self._last: Solution | None = None
 
+    def prepare(self) -> None:
+        """Set-up: size the C++ solver's buffers for this QP's shape, so that its first solve
+        allocates only inside the backend's library (nothing with Python solver calls)."""
+        if self.cpp is not None:
+            self.cpp.prepare(self.buffers)
+
     def rebind(self) -> None:
         """Re-make the Problem view after the tick re-sized the buffers (a new contact set):
         the old view's arrays point at memory the buffers no longer use."""
@@ -580,7 +586,10 @@ class NativeController(Controller):
                 self.hold_contacts(active)
                 tick.select_contacts(list(active))
                 self.configure_tick(tick)
-                self.workspaces[active] = (tick.contact_set, self.qp_calls(tick))
+                calls = self.qp_calls(tick)
+                for call in calls:
+                    call.prepare()
+                self.workspaces[active] = (tick.contact_set, calls)
         finally:
             self.__dict__.update(saved)
         target = tuple(range(len(self.ctx.contacts))) if held is None else held
