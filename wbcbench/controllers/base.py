@@ -313,19 +313,26 @@ class Controller(ABC):
         if schedule is None:
             return None
         phase = schedule.phase(t)
-        contacts, Cw, lw, uw, rows, fmax = self.contact_set(phase.active)
-        changed = phase.active != self.active_contacts
+        changed = self.hold_contacts(phase.active)
+        _, _, lw, uw, rows, fmax = self.contact_set(phase.active)
+        schedule.scale_bounds(phase, rows, fmax, lw, uw, self.lw, self.uw)
+        if changed:
+            self.contacts_changed()
+        return phase
+
+    def hold_contacts(self, active: tuple[int, ...]) -> bool:
+        """:meth:`select_contacts`'s choice of ``active`` without a time: ``frames``, ``Cw``,
+        ``lw``, ``uw`` (unscaled), ``nc`` and the tasks of that set; whether it changed."""
+        contacts, Cw, lw, uw, _, _ = self.contact_set(active)
+        changed = active != self.active_contacts
         self.frames = [c.frame for c in contacts]
         self.contacts = contacts
         if changed:
             self.active_tasks = stance_tasks(self.ctx.tasks, set(self.frames))
         self.Cw, self.nc = Cw, contacts_dim(contacts)
-        self.lw, self.uw = np.empty_like(lw), np.empty_like(uw)
-        schedule.scale_bounds(phase, rows, fmax, lw, uw, self.lw, self.uw)
-        self.active_contacts = phase.active
-        if changed:
-            self.contacts_changed()
-        return phase
+        self.lw, self.uw = lw.copy(), uw.copy()
+        self.active_contacts = active
+        return changed
 
     def contact_set(self, active: tuple[int, ...]) -> tuple[Any, ...]:
         """The contacts ``active`` (indices into the context's), their stacked wrench rows

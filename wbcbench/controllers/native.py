@@ -217,6 +217,12 @@ class QpCall:
         self.sink: list[tuple[Problem, Solution]] | None = getattr(handle, "sink", None)
         self._last: Solution | None = None
 
+    def prepare(self) -> None:
+        """Set-up: size the C++ solver's buffers for this QP's shape, so that its first solve
+        allocates only inside the backend's library (nothing with Python solver calls)."""
+        if self.cpp is not None:
+            self.cpp.prepare(self.buffers)
+
     def rebind(self) -> None:
         """Re-make the Problem view after the tick re-sized the buffers (a new contact set):
         the old view's arrays point at memory the buffers no longer use."""
@@ -480,6 +486,13 @@ class NativeController(Controller):
     native_solve: LevelSolve | None = None
     #: the contact set the tick holds (None: every contact, as it was made)
     tick_contacts: tuple[int, ...] | None = None
+    #: the tick keeps a workspace per contact set (its settings and QP buffers): every set of
+    #: the schedule is configured when the tick is made, and a change of contacts switches to
+    #: the set's workspace and to its QPs' calls (each with a C++ solver of its own) instead of
+    #: configuring the tick again
+    contact_workspaces: ClassVar[bool] = False
+    #: per contact set configured (contact_workspaces): the tick's number of it, its QPs' calls
+    workspaces: dict[tuple[int, ...], tuple[int, Sequence[QpCall]]]
     #: the tick's tasks whose reference has no native form (index in the tick, task): sampled
     #: here before every tick, those of :attr:`Controller.active_tasks` only
     sampled_tasks: list[tuple[int, Task]]
@@ -556,6 +569,35 @@ class NativeController(Controller):
         self.sampled_tasks = self.held_sampled(tasks)
         self.native_calls = self.qp_calls(tick)
         self.native_solve = self.level_solve(tick)
+        self.workspaces = {}
+        if self.contact_workspaces and self.ctx.schedule is not None:
+            self.configure_workspaces(tick)
+
+    def configure_workspaces(self, tick: Any) -> None:
+        """Configure the tick for every contact set of the schedule (``contact_workspaces``),
+        each one's settings as :meth:`~Controller.select_contacts` makes them for the set (its
+        unscaled wrench bounds: every tick sets its own), then return to the set it held."""
+        assert self.ctx.schedule is not None
+        held = self.tick_contacts
+        keep = ("frames", "contacts", "active_tasks", "Cw", "nc", "lw", "uw", "active_contacts")
+        saved = {name: getattr(self, name) for name in keep if hasattr(self, name)}
+        try:
+            for active in self.ctx.schedule.contact_sets():
+                self.hold_contacts(active)
+                tick.select_contacts(list(active))
+                self.configure_tick(tick)
+                calls = self.qp_calls(tick)
+                for call in calls:
+                    call.prepare()
+                self.workspaces[active] = (tick.contact_set, calls)
+        finally:
+            self.__dict__.update(saved)
+        target = tuple(range(len(self.ctx.contacts))) if held is None else held
+        tick.select_contacts(list(target))
+        if target in self.workspaces:
+            self.native_calls = self.workspaces[target][1]
+        else:  # configured by make_native, not since
+            self.workspaces[target] = (tick.contact_set, self.native_calls)
 
     def held_sampled(self, tasks: list[Task]) -> list[tuple[int, Task]]:
         """The tasks of the tick whose references are sampled here, among the active ones."""
@@ -574,11 +616,21 @@ class NativeController(Controller):
         QPs are re-made. Every tick, the set's ramped normal-force bounds."""
         self.select_contacts(t)
         tick = self.native_tick
-        if self.active_contacts != self.tick_contacts:
-            tick.select_contacts(list(self.active_contacts))
-            self.configure_tick(tick)
-            self.rebind_calls(tick)
-            self.tick_contacts = self.active_contacts
+        active = self.active_contacts
+        if active != self.tick_contacts:
+            workspace = self.workspaces.get(active)
+            if workspace is not None:  # configured when the tick was made
+                tick.switch_contacts(workspace[0])
+                self.native_calls = workspace[1]
+            else:
+                tick.select_contacts(list(active))
+                self.configure_tick(tick)
+                if self.contact_workspaces:  # a set the schedule did not foresee
+                    self.native_calls = self.qp_calls(tick)
+                    self.workspaces[active] = (tick.contact_set, self.native_calls)
+                else:
+                    self.rebind_calls(tick)
+            self.tick_contacts = active
             self.sampled_tasks = self.held_sampled(self.tick_tasks())
         tick.set_wrench_bounds(self.lw, self.uw)
 

@@ -88,6 +88,7 @@ class QpWbc(NativeController):
     config: QpWbcConfig
     tick_type = "QpWbcTick"
     native_schedule = True
+    contact_workspaces = True
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)

@@ -55,7 +55,10 @@ WBCBENCH_BIND(solvers, kCore, m) {
                      return s.solution().has_z_box ? nb::cast(s.solution().z_box) : nb::none();
                    })
       .def_prop_ro("builds", &QpSolver::builds)
-      .def("reset", &QpSolver::reset);
+      .def("reset", &QpSolver::reset)
+      .def("prepare", &QpSolver::prepare, nb::arg("qp"),
+           "Set-up: size the buffers that solves of QPs shaped as qp use, so that the first "
+           "solve allocates only inside the backend's library (no data is kept)");
 
   nb::class_<OsqpSolver, QpSolver>(m, "OsqpSolver", "OSQP (C API), as wbcbench.qp's osqp.")
       .def(

@@ -103,6 +103,12 @@ WBCBENCH_BIND(tick, kCore, m) {
            "The contacts the tick holds (increasing indices into the contact frames); a change "
            "re-sizes the dynamics' contact buffers, and the controller's settings for the new "
            "set are handed over next (configure). Returns whether the set changed.")
+      .def("switch_contacts", &Tick::switch_contacts, nb::arg("set"),
+           "select_contacts of the contact set held before under number `set` (contact_set "
+           "after it was selected), without crossing a list; allocates nothing")
+      .def_prop_ro("contact_set", &Tick::contact_set,
+                   "The number of the contact set the tick holds (0: every contact, then the "
+                   "sets in the order first held)")
       .def("set_wrench_bounds", &Tick::set_wrench_bounds, nb::arg("lw").noconvert(),
            nb::arg("uw").noconvert(),
            "This tick's bounds on the active contacts' wrench rows (the normal-force ramps)")

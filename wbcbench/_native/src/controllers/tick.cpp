@@ -1,5 +1,6 @@
 #include "controllers/tick.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace wbcbench {
@@ -10,7 +11,9 @@ Tick::Tick(const std::string& model, const std::vector<std::string>& task_frames
       task_frames_(task_frames),
       contact_frames_(contact_frames),
       dyn_(model, task_frames, contact_frames),
-      tasks_(dyn_.nv()) {}
+      tasks_(dyn_.nv()) {
+  sets_.push_back(dyn_.active_contacts());
+}
 
 void Tick::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v,
                     double t) {
@@ -21,7 +24,18 @@ void Tick::evaluate(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
 bool Tick::select_contacts(const std::vector<int>& active) {
   if (active == dyn_.active_contacts()) return false;
   dyn_.select_contacts(active);
+  const auto it = std::find(sets_.begin(), sets_.end(), active);
+  set_ = static_cast<int>(it - sets_.begin());
+  if (it == sets_.end()) sets_.push_back(active);
+  contacts_switched(set_);
   return true;
+}
+
+bool Tick::switch_contacts(int set) {
+  if (set < 0 || set >= contact_sets())
+    throw std::out_of_range("switch_contacts: no contact set number " + std::to_string(set) +
+                            " (the tick has held " + std::to_string(contact_sets()) + ")");
+  return select_contacts(sets_[static_cast<size_t>(set)]);
 }
 
 void Tick::set_wrench_bounds(const Eigen::Ref<const Vector>&, const Eigen::Ref<const Vector>&) {

@@ -60,8 +60,14 @@ class Tick {
   // until called). A change re-sizes the dynamics' contact buffers; the controller's QPs follow
   // when its settings for the new set (wrench inequalities, tasks) are handed over again
   // (configure), which sizes them. The same set again does nothing and allocates nothing.
-  // Returns whether the set changed.
+  // Returns whether the set changed. Each set held is numbered, in the order first held (0:
+  // every contact, as made): contact_set() is the current one's number.
   virtual bool select_contacts(const std::vector<int>& active);
+  // select_contacts of the set held before under number `set`, without crossing a list: what a
+  // change of contacts calls once every set of the schedule has been held (and configured)
+  bool switch_contacts(int set);
+  int contact_set() const { return set_; }
+  int contact_sets() const { return static_cast<int>(sets_.size()); }
   // This tick's bounds lw ≤ Cw f ≤ uw on the active contacts' wrench rows (the normal-force
   // bounds of a contact that unloads or has just landed), (nw,) each as the configured Cw's
   // rows; copied into the QPs without allocating. A tick that does not follow a contact
@@ -79,6 +85,12 @@ class Tick {
   RobotDynamics dyn_;
   TaskSet tasks_;
   StageTimes times_;
+  // the contact sets held so far, numbered in order, and the current one's number
+  std::vector<std::vector<int>> sets_;
+  int set_ = 0;
+  // after the set changed to number `set` (set_ already holds it): a controller that keeps a
+  // workspace per contact set switches to that set's
+  virtual void contacts_switched(int set) {}
 };
 
 }  // namespace wbcbench

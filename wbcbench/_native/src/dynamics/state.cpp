@@ -114,6 +114,7 @@ void RobotDynamics::set_contact_points(const std::vector<Matrix>& points,
   }
   contact_points_ = points;
   contact_bases_ = bases;
+  held_.clear();  // sized for the former points
   size_contacts();
 }
 
@@ -126,8 +127,27 @@ void RobotDynamics::select_contacts(const std::vector<int>& active) {
           std::to_string(n) + " contact frames");
   }
   if (active == active_) return;
-  active_.assign(active.begin(), active.end());  // within the capacity reserved at set-up
+  for (HeldContacts& held : held_) {
+    if (held.active == active) {  // the set's own buffers back, the current set's kept instead
+      swap_held(held);
+      return;
+    }
+  }
+  // a set met for the first time: the current set's buffers are kept, new ones sized
+  held_.emplace_back();
+  swap_held(held_.back());
+  active_.assign(active.begin(), active.end());
   size_contacts();
+}
+
+void RobotDynamics::swap_held(HeldContacts& held) {
+  active_.swap(held.active);
+  J_contact_.swap(held.J_contact);
+  J_k_.swap(held.J_k);
+  T_.swap(held.T);
+  dJv_contact_.swap(held.dJv_contact);
+  dJv_k_.swap(held.dJv_k);
+  std::swap(redundant_, held.redundant);
 }
 
 void RobotDynamics::size_contacts() {

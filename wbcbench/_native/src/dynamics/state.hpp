@@ -58,8 +58,10 @@ class RobotDynamics {
   const std::vector<Matrix>& contact_points() const { return contact_points_; }
   const std::vector<Matrix>& contact_bases() const { return contact_bases_; }
   // The contacts the Jacobians and drifts above hold (Controller.select_contacts): increasing
-  // indices into the contact frames; every contact until called. A change re-sizes the contact
-  // buffers to the active rows (the next update() fills them); the same set again does nothing.
+  // indices into the contact frames; every contact until called. A change gives the contact
+  // buffers the active rows (the next update() fills them): a set held before gets its own
+  // buffers back (kept since, swapped in: no allocation), a set met for the first time new ones;
+  // the same set again does nothing.
   void select_contacts(const std::vector<int>& active);
   const std::vector<int>& active_contacts() const { return active_; }
   // RobotState.contact_constraint: the rows of J_c q̈ + J̇_c q̇ = 0 that are independent by
@@ -126,6 +128,15 @@ class RobotDynamics {
   bool redundant_ = false;              // some active contact is a point set
   Matrix J_k_, T_;
   Vector dJv_k_;
+  // the contact buffers of the sets held before and not now (select_contacts swaps them in)
+  struct HeldContacts {
+    std::vector<int> active;
+    Matrix J_contact, J_k, T;
+    Vector dJv_contact, dJv_k;
+    bool redundant = false;
+  };
+  std::vector<HeldContacts> held_;
+  void swap_held(HeldContacts& held);
   std::vector<Vector> p_kin_;
   bool with_inverse_ = true;
 };

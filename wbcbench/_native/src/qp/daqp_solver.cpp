@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <functional>
 #include <stdexcept>
 #include <utility>
@@ -109,13 +110,25 @@ const std::vector<std::string>& daqp_setting_names() {
 struct DaqpSolver::Impl {
   DAQPSettings settings{};
   DAQPProblem problem{};
-  DAQPWorkspace* work = nullptr;
+  DAQPWorkspace* work = nullptr;    // the workspace in use (null: none)
+  DAQPWorkspace* storage = nullptr;  // its struct, kept from one workspace to the next
 
+  ~Impl() {
+    free_workspace();
+    std::free(storage);
+  }
+  // the workspace's struct, made once (prepare, or the first set-up)
+  void make_storage() {
+    if (storage != nullptr) return;
+    storage = static_cast<DAQPWorkspace*>(std::calloc(1, sizeof(DAQPWorkspace)));
+    if (storage == nullptr) throw std::bad_alloc();
+  }
   // a zeroed workspace with its own copy of the settings (daqp.Model: allocate_daqp_settings,
   // then the user's values)
   void make_workspace() {
-    work = static_cast<DAQPWorkspace*>(std::calloc(1, sizeof(DAQPWorkspace)));
-    if (work == nullptr) throw std::bad_alloc();
+    make_storage();
+    std::memset(storage, 0, sizeof(DAQPWorkspace));
+    work = storage;
     allocate_daqp_settings(work);
     *work->settings = settings;
   }
@@ -123,7 +136,6 @@ struct DaqpSolver::Impl {
     if (work == nullptr) return;
     free_daqp_workspace(work);  // frees the settings too
     free_daqp_ldp(work);
-    std::free(work);
     work = nullptr;
   }
 };
@@ -143,7 +155,12 @@ DaqpSolver::DaqpSolver(SolveMode mode, const DaqpOptions& options)
   }
 }
 
-DaqpSolver::~DaqpSolver() { impl_->free_workspace(); }
+DaqpSolver::~DaqpSolver() = default;
+
+void DaqpSolver::prepare_native(const QpBuffers& qp) {
+  load(qp, kAllFields);
+  impl_->make_storage();
+}
 
 bool DaqpSolver::has_native() const { return impl_->work != nullptr; }
 

@@ -43,6 +43,7 @@ class DaqpSolver : public QpSolver {
  protected:
   void solve_fresh(const QpBuffers& qp, const Guess* guess, bool keep) override;
   void solve_update(const QpBuffers& qp, unsigned changed) override;
+  void prepare_native(const QpBuffers& qp) override;
   void drop_native() override;
   bool has_native() const override;
 

@@ -51,6 +51,18 @@ void QpSolver::reset() {
   drop_native();
 }
 
+void QpSolver::prepare(const QpBuffers& qp) {
+  const auto n = qp.H.rows();
+  for (QpSolution* s : {&solution_, &previous_}) {
+    s->x.resize(n);
+    s->y.resize(qp.A.rows());
+    s->z.resize(qp.C.rows());
+    s->z_box.resize(qp.has_box ? n : 0);
+  }
+  if (mode_ == SolveMode::kHot && !has_last_) last_ = qp;  // (has_last_ stays false)
+  prepare_native(qp);
+}
+
 // QPSolver._guess without an explicit x0: the previous solution, its duals where their shapes fit
 bool QpSolver::guess_from_previous(const QpBuffers& qp, Guess& guess) const {
   const auto n = qp.H.rows();

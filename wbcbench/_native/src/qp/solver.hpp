@@ -70,6 +70,10 @@ class QpSolver {
   int builds() const { return builds_; }
   // QPSolver.reset
   void reset();
+  // Set-up: size the buffers that solves of QPs shaped as qp use (the solution, the previous
+  // one, the hot snapshot, the backend's copies of the data), so that the first solve
+  // allocates only inside the backend's library. Keeps no data: the first solve is cold.
+  void prepare(const QpBuffers& qp);
 
  protected:
   // an initial guess: pointers to the previous solution's parts (null when absent)
@@ -85,6 +89,8 @@ class QpSolver {
   virtual void solve_update(const QpBuffers& qp, unsigned changed) = 0;
   // an extra test before an in-place update (e.g. a sparsity pattern still fits)
   virtual bool can_update(const QpBuffers& qp) { return true; }
+  // prepare(): size the backend's own copies of qp's data (nothing by default)
+  virtual void prepare_native(const QpBuffers& qp) {}
   // forget the kept native object
   virtual void drop_native() = 0;
   virtual bool has_native() const = 0;

@@ -1,0 +1,158 @@
+"""What a native tick allocates on the heap, steady and at a change of contacts.
+
+Every torque-level controller's native tick steps through a short recorded walk (a lift-off
+and a touchdown) in a fresh interpreter with the allocation
+counter ``make native`` builds preloaded (``benchmarks/alloc_ticks.py``, run as a subprocess:
+never a fork). Each ``Controller.step`` is counted by the library that called malloc: the
+native module (the ticks, the C++ solver calls, the nanobind glue), libstdc++ (``operator new``)
+and the QP backends' libraries (DAQP, qpOASES, eiquadprog); Python's and NumPy's own
+allocations are not the tick's.
+
+A (controller, kind of tick, library) allocates nothing, or is one of :data:`KNOWN`: named, with
+why, and the most it may allocate per tick. The test fails when a tick allocates without an
+exception, beyond its exception, or when an exception is no longer needed (then it is removed
+here); the exceptions measured are reported as a warning, so that no exception passes silently.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+from wbcbench import _native
+
+pytestmark = pytest.mark.skipif(not _native.BUILT, reason=f"native module {_native.REASON}")
+
+ROOT = Path(__file__).resolve().parents[1]
+CONTROLLERS = ["qp_wbc", "to_osf", "osf_hqp", "hqp", "lqp", "rc_lqp"]
+
+#: what is not yet allocation-free: (controller, kind of tick, library) -> (the most allocations
+#: per tick, why). Kinds (benchmarks/alloc_ticks.py): "steady" (the set is the last tick's),
+#: "change" (to a set held before in the run), "first" (to a set held for the first time)
+KNOWN: dict[tuple[str, str, str], tuple[int, str]] = {
+    # DAQP's own: its equality elimination allocates the reduced problem at every update of
+    # H or M (daqp_update_ldp); a QP of a new size, or a solver's first, sets up a workspace
+    ("qp_wbc", "steady", "daqp"): (15, "DAQP's equality elimination at each update"),
+    ("qp_wbc", "change", "daqp"): (15, "DAQP's equality elimination at each update"),
+    ("qp_wbc", "first", "daqp"): (72, "DAQP's set-up of the set's solver"),
+    ("hqp", "steady", "daqp"): (108, "DAQP's equality elimination at each update"),
+    ("hqp", "change", "daqp"): (306, "DAQP's set-up of the new sizes' workspaces"),
+    ("hqp", "first", "daqp"): (306, "DAQP's set-up of the new sizes' workspaces"),
+    ("to_osf", "change", "daqp"): (29, "DAQP's set-up of the new size's workspace"),
+    ("to_osf", "first", "daqp"): (29, "DAQP's set-up of the new size's workspace"),
+    ("osf_hqp", "change", "daqp"): (86, "DAQP's set-up of the new sizes' workspaces"),
+    ("osf_hqp", "first", "daqp"): (86, "DAQP's set-up of the new sizes' workspaces"),
+    ("lqp", "change", "daqp"): (86, "DAQP's set-up of the new sizes' workspaces"),
+    ("lqp", "first", "daqp"): (86, "DAQP's set-up of the new sizes' workspaces"),
+    ("rc_lqp", "change", "daqp"): (143, "DAQP's set-up of the new sizes' workspaces"),
+    ("rc_lqp", "first", "daqp"): (143, "DAQP's set-up of the new sizes' workspaces"),
+    # the hierarchy's level solves (qp/hierarchy.cpp) and their records (NativeSolvers); a
+    # change of contacts configures the tick again (its levels and slots re-sized)
+    ("hqp", "steady", "core"): (240, "the hierarchy's level solves"),
+    ("hqp", "steady", "libstdc++"): (11, "the hierarchy's level solves"),
+    ("hqp", "change", "core"): (437, "the hierarchy's level solves, re-configured"),
+    ("hqp", "change", "libstdc++"): (30, "the hierarchy's level solves, re-configured"),
+    ("hqp", "first", "core"): (437, "the hierarchy's level solves, re-configured"),
+    ("hqp", "first", "libstdc++"): (30, "the hierarchy's level solves, re-configured"),
+    ("lqp", "steady", "core"): (215, "the hierarchy's level solves"),
+    ("lqp", "steady", "libstdc++"): (14, "the hierarchy's level solves"),
+    ("lqp", "change", "core"): (348, "the hierarchy's level solves, re-configured"),
+    ("lqp", "change", "libstdc++"): (30, "the hierarchy's level solves, re-configured"),
+    ("lqp", "first", "core"): (348, "the hierarchy's level solves, re-configured"),
+    ("lqp", "first", "libstdc++"): (30, "the hierarchy's level solves, re-configured"),
+    ("rc_lqp", "steady", "core"): (456, "the hierarchies' level solves and the preview"),
+    ("rc_lqp", "steady", "libstdc++"): (32, "the hierarchies' level solves"),
+    ("rc_lqp", "change", "core"): (726, "the hierarchies' level solves, re-configured"),
+    ("rc_lqp", "change", "libstdc++"): (63, "the hierarchies' level solves, re-configured"),
+    ("rc_lqp", "first", "core"): (726, "the hierarchies' level solves, re-configured"),
+    ("rc_lqp", "first", "libstdc++"): (63, "the hierarchies' level solves, re-configured"),
+    # the OSF parameters (OsfModel::compute: its decompositions) and the tick's own plumbing
+    # (the internal-wrench basis); a change configures the tick again
+    ("to_osf", "steady", "core"): (186, "the OSF parameters and the internal-wrench basis"),
+    ("to_osf", "change", "core"): (261, "the OSF parameters, re-configured"),
+    ("to_osf", "change", "libstdc++"): (15, "re-configured for the new contact set"),
+    ("to_osf", "first", "core"): (261, "the OSF parameters, re-configured"),
+    ("to_osf", "first", "libstdc++"): (15, "re-configured for the new contact set"),
+    ("osf_hqp", "steady", "core"): (159, "the OSF parameters"),
+    ("osf_hqp", "change", "core"): (299, "the OSF parameters, re-configured"),
+    ("osf_hqp", "change", "libstdc++"): (15, "re-configured for the new contact set"),
+    ("osf_hqp", "first", "core"): (299, "the OSF parameters, re-configured"),
+    ("osf_hqp", "first", "libstdc++"): (15, "re-configured for the new contact set"),
+}
+
+
+class NativeAllocations(UserWarning):
+    """The known allocations of the native ticks, as measured (see :data:`KNOWN`)."""
+
+
+def counter() -> Path:
+    spec = importlib.util.find_spec("wbcbench._native._core")
+    assert spec is not None and spec.origin is not None
+    return Path(spec.origin).with_name("libwbcbench_alloc_counter.so")
+
+
+def test_native_ticks_allocate_only_the_known_exceptions() -> None:
+    lib = counter()
+    assert lib.exists(), f"{lib} is missing: rebuild the module (make native)"
+    env = {**os.environ, "LD_PRELOAD": str(lib), "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "benchmarks" / "alloc_ticks.py"),
+            "--json",
+            "--controllers",
+            ",".join(CONTROLLERS),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    counts = json.loads(proc.stdout.strip().splitlines()[-1])
+    problems, report, used = [], [], set()
+    for name in CONTROLLERS:
+        assert not counts[name].pop("failed"), counts[name]
+        # the walk lifts a foot (a set held for the first time) and lands it (back to the set
+        # held before)
+        assert counts[name]["first"]["ticks"] >= 1, counts[name]
+        assert counts[name]["change"]["ticks"] >= 1, counts[name]
+        assert counts[name]["steady"]["ticks"] > 1000, counts[name]
+        for kind in ("steady", "change", "first"):
+            row = counts[name][kind]
+            for library, most in row["max"].items():
+                key = (name, kind, library)
+                known = KNOWN.get(key)
+                if known is None:
+                    if most:
+                        problems.append(
+                            f"{name} {kind} ticks allocate from {library}: "
+                            f"{row['mean'][library]:.1f} per tick on average, at most {most}"
+                        )
+                    continue
+                used.add(key)
+                allowance, why = known
+                if most == 0:
+                    problems.append(f"{key} allocates nothing now: remove its exception")
+                elif most > allowance:
+                    problems.append(f"{key}: {most} per tick, beyond the {allowance} allowed")
+                report.append(
+                    f"{name} {kind} {library}: {row['mean'][library]:.1f} per tick "
+                    f"(at most {most}; {why})"
+                )
+    stale = sorted(set(KNOWN) - used)
+    assert not stale, f"exceptions for what the run did not count: {stale}"
+    assert not problems, "\n".join(problems)
+    if report:
+        warnings.warn(
+            NativeAllocations("known allocations of the native ticks:\n" + "\n".join(report)),
+            stacklevel=1,
+        )
