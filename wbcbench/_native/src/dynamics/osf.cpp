@@ -46,27 +46,27 @@ void Cod::compute(const Matrix& Y, double rcond, Decomposition& d) {
   qr_.compute(Y);
   const int r = rank_of(qr_.matrixQR().diagonal().cwiseAbs(), rcond);
   // Q (k, k) whole: Q₁ enters Y†, Q₂ is the left null space. The sequence is formed in place
-  // with our workspace (HouseholderSequence::evalTo without it allocates one).
+  // with our workspace, one per length (HouseholderSequence::evalTo resizes it, and without it
+  // allocates one).
   Q_.resize(k, k);
-  qr_.householderQ().evalTo(Q_, work_);
+  qr_.householderQ().evalTo(Q_, work_q_);
   // [R11 R12]ᵀ (n, r) = Z [T'; 0]: Y P = Q₁ T'ᵀ Z₁ᵀ
   trap_ = qr_.matrixQR().topRows(r).transpose();
   trap_.triangularView<Eigen::StrictlyUpper>().setZero();
   qz_.compute(trap_);
   Z_.resize(n, n);
-  qz_.householderQ().evalTo(Z_, work_);
+  qz_.householderQ().evalTo(Z_, work_z_);
   d.rank = r;
   // Y† = P Z₁ T'⁻ᵀ Q₁ᵀ, v₂ = P Z₂ (V = P Z without forming it)
   const auto T = qz_.matrixQR().topRows(r).triangularView<Eigen::Upper>();
   q1t_ = Q_.leftCols(r).transpose();
   T.transpose().solveInPlace(q1t_);
-  trap_.resize(n, k);  // reused for Z₁ T'⁻ᵀ Q₁ᵀ
-  trap_.noalias() = Z_.leftCols(r) * q1t_;
+  Zq_.noalias() = Z_.leftCols(r) * q1t_;
   d.pinv.resize(n, k);
   d.right_null.resize(n, n - r);
   const auto& perm = qr_.colsPermutation().indices();
   for (Eigen::Index i = 0; i < n; ++i) {
-    d.pinv.row(perm(i)) = trap_.row(i);
+    d.pinv.row(perm(i)) = Zq_.row(i);
     d.right_null.row(perm(i)) = Z_.row(i).tail(n - r);
   }
   d.left_null = Q_.rightCols(k - r);
@@ -151,7 +151,7 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
     JcB_.noalias() = Jc * Bc_;
     // redundant contacts (several points on one frame: by construction) by the SVD
     if (dyn.contact_rows_redundant() || !spd_inverse(JcB_, llt_c_, Lc_)) {
-      psd_.compute(JcB_, true, 1e-9, 0.0, Lc_);
+      psd_c_.compute(JcB_, true, 1e-9, 0.0, Lc_);
     }
     Xt_.noalias() = Lc_ * Bc_.transpose();  // J̄_cᵀ (c, n)
     Phi.noalias() -= Bc_ * Xt_;
@@ -190,8 +190,9 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
   // -- the levels: the products with every task row at once (fewer, larger GEMMs)
   const int L = static_cast<int>(spec_.level_dims.size());
   p.levels.resize(L);
+  lw_.resize(L);
   p.exact = spec_.exact;
-  Matrix &N = N_, &a = a_, &aW = aW_, &X = X_, &Jbar = Jbar_;
+  Matrix& N = N_;
   JPhi_.noalias() = J * p.Phi_a;
   JY_.noalias() = J * Ybar;
   JMinv_.noalias() = J * Minv;
@@ -201,6 +202,8 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
   for (int i = 0; i < L; ++i) {
     const Eigen::Index m = spec_.level_dims[i];
     LevelParams& lv = p.levels[i];
+    LevelWork& w = lw_[i];
+    Matrix &a = w.a, &aW = w.aW, &X = w.X, &Jbar = w.Jbar;
     lv.Jhat = JPhi_.middleRows(row, m);
     lv.bias = drift.segment(row, m);
     lv.bias.noalias() += J.middleRows(row, m) * p.qdd0;
@@ -213,7 +216,7 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
     X.noalias() = aW * a.transpose();
     const double scale = m ? inertia_.segment(row, m).maxCoeff() : 0.0;
     symmetrize(X);
-    psd_.compute(X, spec_.inverse == OsfInverse::kSvd, spec_.rcond, scale, lv.Lam);
+    w.psd.compute(X, spec_.inverse == OsfInverse::kSvd, spec_.rcond, scale, lv.Lam);
     lv.Jstar = a;
     lv.B.noalias() = a.transpose() * lv.Lam;
     if (spec_.force_level[i]) {
@@ -228,8 +231,8 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
         N.noalias() = -Jbar * a;
         N.diagonal().array() += 1.0;
       } else {
-        NJ_.noalias() = N * Jbar;
-        N.noalias() -= NJ_ * a;
+        w.NJ.noalias() = N * Jbar;
+        N.noalias() -= w.NJ * a;
       }
     }
     row += m;
@@ -262,12 +265,13 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
     Eigen::Index col = 0;
     for (int i = 0; i < L; ++i) {
       const LevelParams& lv = p.levels[i];
+      LevelWork& w = lw_[i];
       const Eigen::Index m = spec_.level_dims[i];
       if (spec_.exact && col) {
-        JK_.noalias() = lv.Jhat * p.K.leftCols(col);
-        p.K.leftCols(col).noalias() -= lv.B * JK_;
-        jg_.noalias() = lv.Jhat * p.gamma0;
-        p.gamma0.noalias() -= lv.B * jg_;
+        w.JK.noalias() = lv.Jhat * p.K.leftCols(col);
+        p.K.leftCols(col).noalias() -= lv.B * w.JK;
+        w.jg.noalias() = lv.Jhat * p.gamma0;
+        p.gamma0.noalias() -= lv.B * w.jg;
       }
       p.K.middleCols(col, m) = lv.E;
       p.gamma0.noalias() -= lv.B * lv.bias;

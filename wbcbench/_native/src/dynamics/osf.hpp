@@ -33,8 +33,8 @@ class Cod {
  private:
   Eigen::ColPivHouseholderQR<Matrix> qr_;
   Eigen::HouseholderQR<Matrix> qz_;
-  Matrix Q_, Z_, trap_, q1t_;
-  Vector work_;
+  Matrix Q_, Z_, trap_, q1t_, Zq_;
+  Vector work_q_, work_z_;
 };
 
 // The same quantities from a full SVD.
@@ -110,14 +110,20 @@ class OsfModel {
   Decomposition dec_;
   Eigen::LLT<Matrix> llt_v_;
   Matrix Ybar_, Mv2_, vMv_, alpha_;
-  // the levels
-  PsdPinv psd_;
-  Matrix JPhi_, JY_, JMinv_, N_, a_, aW_, X_, Jbar_, NJ_;
+  PsdPinv psd_c_;
+  // the levels: buffers per level, whose sizes differ
+  struct LevelWork {
+    PsdPinv psd;
+    Matrix a, aW, X, Jbar, NJ, JK;
+    Vector jg;
+  };
+  std::vector<LevelWork> lw_;
+  Matrix JPhi_, JY_, JMinv_, N_;
   Vector inertia_;
-  // the wrench distribution and Γ = K ρ + γ₀
+  // the wrench distribution
   Eigen::HouseholderQR<Matrix> qr_f_;
-  Matrix FNw_, YcT_, JK_;
-  Vector jg_, work_;
+  Matrix FNw_, YcT_;
+  Vector work_;
 };
 
 }  // namespace wbcbench
