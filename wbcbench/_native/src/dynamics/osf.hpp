@@ -104,13 +104,13 @@ class OsfModel {
   OsfModelSpec spec_;
   // contact-constrained dynamics
   Eigen::LLT<Matrix> llt_c_;
+  PsdPinv psd_c_;  // redundant contacts
   Matrix Bc_, JcB_, Lc_, Xt_, Phi_, Y_;
   // Ȳ and N_w
   Cod cod_;
   Decomposition dec_;
   Eigen::LLT<Matrix> llt_v_;
   Matrix Ybar_, Mv2_, vMv_, alpha_;
-  PsdPinv psd_c_;
   // the levels: buffers per level, whose sizes differ
   struct LevelWork {
     PsdPinv psd;
