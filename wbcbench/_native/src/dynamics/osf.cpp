@@ -10,46 +10,66 @@ namespace wbcbench {
 
 namespace {
 
-// Numerical rank from a non-increasing vector of |R_ii| or singular values.
-int rank_of(const Vector& diag, double rcond, double scale = 0.0) {
+// Numerical rank from a non-increasing vector (an expression) of |R_ii| or singular values.
+template <typename Diag>
+int rank_of(const Eigen::MatrixBase<Diag>& diag, double rcond, double scale = 0.0) {
   if (diag.size() == 0 || diag(0) <= 0.0) return 0;
   const double cut = rcond * std::max(diag(0), scale);
   return static_cast<int>((diag.array() > cut).count());
 }
 
-// The inverse of a symmetric positive definite matrix by Cholesky; false if it is not.
-bool spd_inverse(const Matrix& A, Matrix& out) {
-  Eigen::LLT<Matrix> llt(A);
+// out = A⁻¹ of a symmetric positive definite A by Cholesky (factor kept in llt); false if it is
+// not positive definite. Allocates nothing once llt and out have A's shape.
+bool spd_inverse(const Matrix& A, Eigen::LLT<Matrix>& llt, Matrix& out) {
+  llt.compute(A);
   if (llt.info() != Eigen::Success) return false;
-  out = llt.solve(Matrix::Identity(A.rows(), A.cols()));
+  out.setIdentity(A.rows(), A.cols());
+  llt.solveInPlace(out);
   return true;
+}
+
+// A = 0.5 (A + Aᵀ) in place (the same values as the expression, without its temporary).
+void symmetrize(Matrix& A) {
+  for (Eigen::Index j = 0; j < A.cols(); ++j) {
+    for (Eigen::Index i = j + 1; i < A.rows(); ++i) {
+      const double s = 0.5 * (A(i, j) + A(j, i));
+      A(i, j) = s;
+      A(j, i) = s;
+    }
+  }
 }
 
 }  // namespace
 
-Decomposition cod(const Matrix& Y, double rcond) {
+void Cod::compute(const Matrix& Y, double rcond, Decomposition& d) {
   const Eigen::Index k = Y.rows(), n = Y.cols();
-  Eigen::ColPivHouseholderQR<Matrix> qr(Y);
-  const Vector diag = qr.matrixQR().diagonal().cwiseAbs();
-  const int r = rank_of(diag, rcond);
-  const Matrix Q = qr.householderQ();  // (k, k)
-  // [R11 R12] (r, n) = Z [T'; 0] transposed: Y P = Q₁ T'ᵀ Z₁ᵀ
-  Matrix trap = qr.matrixQR().topRows(r);
-  for (int i = 1; i < r; ++i) trap.row(i).head(i).setZero();
-  Eigen::HouseholderQR<Matrix> qz(trap.transpose());
-  const Matrix Z = qz.householderQ();  // (n, n)
-  Matrix V(n, n);
-  V = qr.colsPermutation() * Z;  // P Z
-  Decomposition d;
+  qr_.compute(Y);
+  const int r = rank_of(qr_.matrixQR().diagonal().cwiseAbs(), rcond);
+  // Q (k, k) whole: Q₁ enters Y†, Q₂ is the left null space. The sequence is formed in place
+  // with our workspace, one per length (HouseholderSequence::evalTo resizes it, and without it
+  // allocates one).
+  Q_.resize(k, k);
+  qr_.householderQ().evalTo(Q_, work_q_);
+  // [R11 R12]ᵀ (n, r) = Z [T'; 0]: Y P = Q₁ T'ᵀ Z₁ᵀ
+  trap_ = qr_.matrixQR().topRows(r).transpose();
+  trap_.triangularView<Eigen::StrictlyUpper>().setZero();
+  qz_.compute(trap_);
+  Z_.resize(n, n);
+  qz_.householderQ().evalTo(Z_, work_z_);
   d.rank = r;
-  // Y† = V₁ T'⁻ᵀ Q₁ᵀ
-  const auto T = qz.matrixQR().topRows(r).triangularView<Eigen::Upper>();
-  Matrix q1t = Q.leftCols(r).transpose();
-  T.transpose().solveInPlace(q1t);
-  d.pinv.noalias() = V.leftCols(r) * q1t;
-  d.right_null = V.rightCols(n - r);
-  d.left_null = Q.rightCols(k - r);
-  return d;
+  // Y† = P Z₁ T'⁻ᵀ Q₁ᵀ, v₂ = P Z₂ (V = P Z without forming it)
+  const auto T = qz_.matrixQR().topRows(r).triangularView<Eigen::Upper>();
+  q1t_ = Q_.leftCols(r).transpose();
+  T.transpose().solveInPlace(q1t_);
+  Zq_.noalias() = Z_.leftCols(r) * q1t_;
+  d.pinv.resize(n, k);
+  d.right_null.resize(n, n - r);
+  const auto& perm = qr_.colsPermutation().indices();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    d.pinv.row(perm(i)) = Zq_.row(i);
+    d.right_null.row(perm(i)) = Z_.row(i).tail(n - r);
+  }
+  d.left_null = Q_.rightCols(k - r);
 }
 
 Decomposition svd(const Matrix& Y, double rcond) {
@@ -66,7 +86,7 @@ Decomposition svd(const Matrix& Y, double rcond) {
   return d;
 }
 
-int psd_pinv(const Matrix& X, bool by_svd, double rcond, double scale, Matrix& out) {
+int PsdPinv::compute(const Matrix& X, bool by_svd, double rcond, double scale, Matrix& out) {
   const Eigen::Index m = X.rows();
   out.setZero(m, m);
   if (m == 0) return 0;
@@ -77,19 +97,20 @@ int psd_pinv(const Matrix& X, bool by_svd, double rcond, double scale, Matrix& o
     out.noalias() = U * s.singularValues().head(r).cwiseInverse().asDiagonal() * U.transpose();
     return r;
   }
-  Eigen::ColPivHouseholderQR<Matrix> qr(X);
-  const int r = rank_of(qr.matrixQR().diagonal().cwiseAbs(), rcond, scale);
+  qr_.compute(X);
+  const int r = rank_of(qr_.matrixQR().diagonal().cwiseAbs(), rcond, scale);
   if (r == 0) return 0;
-  if (r == m && spd_inverse(X, out)) return r;
+  if (r == m && spd_inverse(X, llt_, out)) return r;
   // X = Q₁ C Q₁ᵀ with C = Q₁ᵀ X Q₁ positive definite: X⁺ = Q₁ C⁻¹ Q₁ᵀ
-  Matrix Q1 = Matrix::Identity(m, r);
-  Q1.applyOnTheLeft(qr.householderQ());  // the first r columns of Q only
-  const Matrix XQ1 = X * Q1;
-  Eigen::LLT<Matrix> llt(Q1.transpose() * XQ1);
-  if (llt.info() != Eigen::Success) throw std::runtime_error("psd_pinv: range block not SPD");
-  Matrix S = Q1.transpose();
-  llt.solveInPlace(S);
-  out.noalias() = Q1 * S;
+  Q1_.setIdentity(m, r);
+  qr_.householderQ().applyThisOnTheLeft(Q1_, work_);  // the first r columns of Q only
+  XQ1_.noalias() = X * Q1_;
+  C_.noalias() = Q1_.transpose() * XQ1_;
+  llt_.compute(C_);
+  if (llt_.info() != Eigen::Success) throw std::runtime_error("psd_pinv: range block not SPD");
+  S_ = Q1_.transpose();
+  llt_.solveInPlace(S_);
+  out.noalias() = Q1_ * S_;
   return r;
 }
 
@@ -106,7 +127,7 @@ void OsfParams::level_step(int i, const Vector& prev, const Eigen::Ref<const Vec
 }
 
 void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& drift, long tick,
-                       OsfParams& p) const {
+                       OsfParams& p) {
   const auto t0 = std::chrono::steady_clock::now();
   const Matrix& Minv = dyn.Minv();
   const Matrix& M = dyn.M();
@@ -116,87 +137,102 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
   const Eigen::Index n = dyn.nv(), k = n - 6, c = Jc.rows();
 
   // -- contact-constrained dynamics
-  Matrix Phi, Y;
-  Matrix Xt(c, n);  // J̄_cᵀ
+  Matrix& Phi = Phi_;
+  Matrix& Y = Y_;
+  Phi = Minv;
   if (c == 0) {
-    Phi = Minv;
-    Y = Matrix::Identity(n, n).bottomRows(k);
+    Y.setZero(k, n);
+    Y.rightCols(k).setIdentity();
     p.qdd0.noalias() = -Minv * h;
     p.F.setZero(0, k);
     p.f0.setZero(0);
   } else {
-    const Matrix B = Minv * Jc.transpose();  // (n, c)
-    const Matrix JcB = Jc * B;
-    Matrix Lc;
+    Bc_.noalias() = Minv * Jc.transpose();  // (n, c)
+    JcB_.noalias() = Jc * Bc_;
     // redundant contacts (several points on one frame: by construction) by the SVD
-    if (dyn.contact_rows_redundant() || !spd_inverse(JcB, Lc)) psd_pinv(JcB, true, 1e-9, 0.0, Lc);
-    Xt.noalias() = Lc * B.transpose();
-    Phi = Minv;
-    Phi.noalias() -= B * Xt;
-    Phi = 0.5 * (Phi + Phi.transpose()).eval();
-    Y.noalias() = -Xt.rightCols(k).transpose() * Jc;
+    if (dyn.contact_rows_redundant() || !spd_inverse(JcB_, llt_c_, Lc_)) {
+      psd_c_.compute(JcB_, true, 1e-9, 0.0, Lc_);
+    }
+    Xt_.noalias() = Lc_ * Bc_.transpose();  // J̄_cᵀ (c, n)
+    Phi.noalias() -= Bc_ * Xt_;
+    symmetrize(Phi);
+    Y.noalias() = -Xt_.rightCols(k).transpose() * Jc;
     Y.rightCols(k).diagonal().array() += 1.0;
     p.qdd0.noalias() = -Phi * h;
-    p.qdd0.noalias() -= Xt.transpose() * dJc;
-    p.F = -Xt.rightCols(k);
-    p.f0.noalias() = Xt * h;
-    p.f0.noalias() -= Lc * dJc;
+    p.qdd0.noalias() -= Xt_.transpose() * dJc;
+    p.F = -Xt_.rightCols(k);
+    p.f0.noalias() = Xt_ * h;
+    p.f0.noalias() -= Lc_ * dJc;
   }
   p.W = Phi.bottomRightCorner(k, k);
   p.Phi_a = Phi.rightCols(k);
 
   // -- the dynamically consistent inverse Ȳ and N_w
-  const Decomposition dec =
-      spec_.inverse == OsfInverse::kSvd ? svd(Y, spec_.rcond) : cod(Y, spec_.rcond);
-  Matrix Ybar = dec.pinv;
-  if (spec_.inverse != OsfInverse::kPinv && dec.right_null.cols() > 0) {
-    const Matrix& v2 = dec.right_null;
-    const Matrix Mv2 = M * v2;
-    Eigen::LLT<Matrix> llt(v2.transpose() * Mv2);
-    if (llt.info() != Eigen::Success) throw std::runtime_error("osf: v₂ᵀ M v₂ not SPD");
-    const Matrix alpha = llt.solve(Mv2.transpose() * dec.pinv);  // eq. 19
-    Ybar.noalias() -= v2 * alpha;
+  if (spec_.inverse == OsfInverse::kSvd) {
+    dec_ = svd(Y, spec_.rcond);
+  } else {
+    cod_.compute(Y, spec_.rcond, dec_);
   }
-  p.Nw = dec.left_null;
+  Matrix& Ybar = Ybar_;
+  Ybar = dec_.pinv;
+  if (spec_.inverse != OsfInverse::kPinv && dec_.right_null.cols() > 0) {
+    const Matrix& v2 = dec_.right_null;
+    Mv2_.noalias() = M * v2;
+    vMv_.noalias() = v2.transpose() * Mv2_;
+    llt_v_.compute(vMv_);
+    if (llt_v_.info() != Eigen::Success) throw std::runtime_error("osf: v₂ᵀ M v₂ not SPD");
+    alpha_.noalias() = Mv2_.transpose() * dec_.pinv;  // eq. 19
+    llt_v_.solveInPlace(alpha_);
+    Ybar.noalias() -= v2 * alpha_;
+  }
+  p.Nw = dec_.left_null;
 
   // -- the levels: the products with every task row at once (fewer, larger GEMMs)
   const int L = static_cast<int>(spec_.level_dims.size());
   p.levels.resize(L);
+  lw_.resize(L);
   p.exact = spec_.exact;
-  Matrix JPhi, JY, JMinv, N, a, aW, X, Jbar;
-  JPhi.noalias() = J * p.Phi_a;
-  JY.noalias() = J * Ybar;
-  JMinv.noalias() = J * Minv;
+  Matrix& N = N_;
+  JPhi_.noalias() = J * p.Phi_a;
+  JY_.noalias() = J * Ybar;
+  JMinv_.noalias() = J * Minv;
   // each row's inverse inertia without contacts or levels above sets its level's rank scale
-  const Vector inertia = JMinv.cwiseProduct(J).rowwise().sum();
+  inertia_ = JMinv_.cwiseProduct(J).rowwise().sum();
   Eigen::Index row = 0;
   for (int i = 0; i < L; ++i) {
     const Eigen::Index m = spec_.level_dims[i];
     LevelParams& lv = p.levels[i];
-    lv.Jhat = JPhi.middleRows(row, m);
+    LevelWork& w = lw_[i];
+    Matrix &a = w.a, &aW = w.aW, &X = w.X, &Jbar = w.Jbar;
+    lv.Jhat = JPhi_.middleRows(row, m);
     lv.bias = drift.segment(row, m);
     lv.bias.noalias() += J.middleRows(row, m) * p.qdd0;
     if (i == 0) {
-      a = JY.middleRows(row, m);
+      a = JY_.middleRows(row, m);
     } else {
-      a.noalias() = JY.middleRows(row, m) * N;
+      a.noalias() = JY_.middleRows(row, m) * N;
     }
     aW.noalias() = a * p.W;
     X.noalias() = aW * a.transpose();
-    const double scale = m ? inertia.segment(row, m).maxCoeff() : 0.0;
-    X = 0.5 * (X + X.transpose()).eval();
-    psd_pinv(X, spec_.inverse == OsfInverse::kSvd, spec_.rcond, scale, lv.Lam);
+    const double scale = m ? inertia_.segment(row, m).maxCoeff() : 0.0;
+    symmetrize(X);
+    w.psd.compute(X, spec_.inverse == OsfInverse::kSvd, spec_.rcond, scale, lv.Lam);
     lv.Jstar = a;
     lv.B.noalias() = a.transpose() * lv.Lam;
-    lv.E = spec_.force_level[i] ? Matrix(a.transpose()) : lv.B;
+    if (spec_.force_level[i]) {
+      lv.E = a.transpose();
+    } else {
+      lv.E = lv.B;
+    }
     if (i + 1 < L) {
-      Jbar.noalias() = p.W * lv.B;
+      // J̄ = W B = (a W)ᵀ Λ: W is symmetric, and a W is at hand
+      Jbar.noalias() = aW.transpose() * lv.Lam;
       if (i == 0) {
-        N = -Jbar * a;
+        N.noalias() = -Jbar * a;
         N.diagonal().array() += 1.0;
       } else {
-        const Matrix NJ = N * Jbar;
-        N.noalias() -= NJ * a;
+        w.NJ.noalias() = N * Jbar;
+        N.noalias() -= w.NJ * a;
       }
     }
     row += m;
@@ -208,12 +244,14 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
     p.Yc.setZero(k, 0);
     p.Qf.setZero(c, 0);
   } else {
-    Eigen::HouseholderQR<Matrix> qr(p.F * p.Nw);
-    p.Qf = Matrix(qr.householderQ()).leftCols(np);
-    const auto Rf = qr.matrixQR().topRows(np).triangularView<Eigen::Upper>();
-    Matrix YcT = p.Nw.transpose();
-    Rf.transpose().solveInPlace(YcT);
-    p.Yc = YcT.transpose();
+    FNw_.noalias() = p.F * p.Nw;
+    qr_f_.compute(FNw_);
+    p.Qf.setIdentity(c, np);
+    qr_f_.householderQ().applyThisOnTheLeft(p.Qf, work_);  // the first np columns of Q only
+    const auto Rf = qr_f_.matrixQR().topRows(np).triangularView<Eigen::Upper>();
+    YcT_ = p.Nw.transpose();
+    Rf.transpose().solveInPlace(YcT_);
+    p.Yc = YcT_.transpose();
   }
   p.Yw.noalias() = p.Yc * p.Qf.transpose();
   p.G = Jc.leftCols(6).transpose();
@@ -227,12 +265,13 @@ void OsfModel::compute(const RobotDynamics& dyn, const Matrix& J, const Vector& 
     Eigen::Index col = 0;
     for (int i = 0; i < L; ++i) {
       const LevelParams& lv = p.levels[i];
+      LevelWork& w = lw_[i];
       const Eigen::Index m = spec_.level_dims[i];
       if (spec_.exact && col) {
-        const Matrix JK = lv.Jhat * p.K.leftCols(col);
-        p.K.leftCols(col).noalias() -= lv.B * JK;
-        const Vector jg = lv.Jhat * p.gamma0;
-        p.gamma0.noalias() -= lv.B * jg;
+        w.JK.noalias() = lv.Jhat * p.K.leftCols(col);
+        p.K.leftCols(col).noalias() -= lv.B * w.JK;
+        w.jg.noalias() = lv.Jhat * p.gamma0;
+        p.gamma0.noalias() -= lv.B * w.jg;
       }
       p.K.middleCols(col, m) = lv.E;
       p.gamma0.noalias() -= lv.B * lv.bias;

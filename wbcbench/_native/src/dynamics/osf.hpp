@@ -3,7 +3,9 @@
 // contact wrench on the robot, M q̈ + h = Sᵀ Γ + J_cᵀ f). See that module for the equations.
 #pragma once
 
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <Eigen/QR>
 #include <string>
 #include <vector>
 
@@ -21,12 +23,36 @@ struct Decomposition {
   int rank = 0;
 };
 
-// Y = Q [T 0; 0 0] Vᵀ by pivoted Householder QR and a QR of the trapezoidal factor.
-Decomposition cod(const Matrix& Y, double rcond);
+// Y = Q [T 0; 0 0] Vᵀ by pivoted Householder QR and a QR of the trapezoidal factor (cod in
+// Python). The factorisations and results are members, computed in place: once sized, compute()
+// allocates nothing while Y keeps its shape.
+class Cod {
+ public:
+  void compute(const Matrix& Y, double rcond, Decomposition& out);
+
+ private:
+  Eigen::ColPivHouseholderQR<Matrix> qr_;
+  Eigen::HouseholderQR<Matrix> qz_;
+  Matrix Q_, Z_, trap_, q1t_, Zq_;
+  Vector work_q_, work_z_;
+};
+
 // The same quantities from a full SVD.
 Decomposition svd(const Matrix& Y, double rcond);
-// X⁺ of a symmetric PSD X and its rank: ranks count the values above rcond · max(largest, scale).
-int psd_pinv(const Matrix& X, bool by_svd, double rcond, double scale, Matrix& out);
+
+// X⁺ of a symmetric PSD X and its rank (psd_pinv in Python): ranks count the values above
+// rcond · max(largest, scale). The pivoted QR that decides the rank, the Cholesky factors and the
+// buffers are members: once sized, compute() allocates nothing (the SVD path does).
+class PsdPinv {
+ public:
+  int compute(const Matrix& X, bool by_svd, double rcond, double scale, Matrix& out);
+
+ private:
+  Eigen::ColPivHouseholderQR<Matrix> qr_;
+  Eigen::LLT<Matrix> llt_;
+  Matrix Q1_, XQ1_, C_, S_;
+  Vector work_;
+};
 
 // One priority level's parameters (m stacked task rows).
 struct LevelParams {
@@ -62,18 +88,42 @@ struct OsfModelSpec {
   bool affine = false;  // also Γ = K ρ + γ₀ over all levels (TO-OSF's single QP)
 };
 
-// Computes OsfParams from one tick's dynamics and stacked task Jacobian / drift.
+// Computes OsfParams from one tick's dynamics and stacked task Jacobian / drift. The
+// factorisations and intermediate products are members reused call to call: once sized, compute()
+// allocates nothing until a shape changes (a contact made or broken) — one model per thread.
 class OsfModel {
  public:
   explicit OsfModel(OsfModelSpec spec) : spec_(std::move(spec)) {}
   const OsfModelSpec& spec() const { return spec_; }
   // dyn must hold M⁻¹ (RobotDynamics::set_inverse(true)); J (Σm, n) and drift (Σm,) are the
-  // tasks' rows in level order
+  // tasks' rows in level order; out's buffers are reused as well
   void compute(const RobotDynamics& dyn, const Matrix& J, const Vector& drift, long tick,
-               OsfParams& out) const;
+               OsfParams& out);
 
  private:
   OsfModelSpec spec_;
+  // contact-constrained dynamics
+  Eigen::LLT<Matrix> llt_c_;
+  PsdPinv psd_c_;  // redundant contacts
+  Matrix Bc_, JcB_, Lc_, Xt_, Phi_, Y_;
+  // Ȳ and N_w
+  Cod cod_;
+  Decomposition dec_;
+  Eigen::LLT<Matrix> llt_v_;
+  Matrix Ybar_, Mv2_, vMv_, alpha_;
+  // the levels: buffers per level, whose sizes differ
+  struct LevelWork {
+    PsdPinv psd;
+    Matrix a, aW, X, Jbar, NJ, JK;
+    Vector jg;
+  };
+  std::vector<LevelWork> lw_;
+  Matrix JPhi_, JY_, JMinv_, N_;
+  Vector inertia_;
+  // the wrench distribution
+  Eigen::HouseholderQR<Matrix> qr_f_;
+  Matrix FNw_, YcT_;
+  Vector work_;
 };
 
 }  // namespace wbcbench
