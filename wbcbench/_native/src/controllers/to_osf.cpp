@@ -70,7 +70,8 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
     if (s_.wrench_total) {
       SA_.noalias() = s_.Sf * Af_;
       qp_.H.noalias() += hw * (SA_.transpose() * SA_);
-      qp_.g.noalias() += hw * (SA_.transpose() * (s_.Sf * fc_));
+      sf_fc_.noalias() = s_.Sf * fc_;
+      qp_.g.noalias() += hw * (SA_.transpose() * sf_fc_);
     } else if (basis_) {
       if (nf_ > 0) {  // (a single contact has no internal wrench)
         SA_.noalias() = s_.Sf * N_;
@@ -97,9 +98,9 @@ bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const 
   qp_.u.head(kk) = s_.tau_max - p.gamma0;
   if (nc_) {
     qp_.C.bottomRows(nw_).noalias() = s_.Cw * Af_;
-    const Vector cwf = s_.Cw * fc_;
-    qp_.l.tail(nw_) = os_.lw - cwf;
-    qp_.u.tail(nw_) = os_.uw - cwf;
+    cw_fc_.noalias() = s_.Cw * fc_;
+    qp_.l.tail(nw_) = os_.lw - cw_fc_;
+    qp_.u.tail(nw_) = os_.uw - cw_fc_;
   }
   // x = D x̃
   qp_.H = D_.asDiagonal() * qp_.H * D_.asDiagonal();
@@ -140,14 +141,15 @@ void ToOsfTick::finish(const Eigen::Ref<const Vector>& x) {
     partial_.row(i) = work_.transpose();
     prev_ = work_;
   }
-  Vector dist = Vector::Zero(k());
-  if (nc_) dist.noalias() = params_.Yw * f_opt_;
-  realise(dist);
+  dist_.setZero(k());
+  if (nc_) dist_.noalias() = params_.Yw * f_opt_;
+  realise(dist_);
   if (nc_ && dyn_.contact_rows_redundant()) {
     // the QP's distribution: F_opt's part no torque produces (forces along a line contact,
     // which change no wrench at the frame) is the one that holds each point in its cone
     wrench_ += f_opt_;
-    wrench_.noalias() -= params_.Qf * (params_.Qf.transpose() * f_opt_);
+    qf_f_.noalias() = params_.Qf.transpose() * f_opt_;
+    wrench_.noalias() -= params_.Qf * qf_f_;
   }
   times_.build += seconds_since(t0);
 }

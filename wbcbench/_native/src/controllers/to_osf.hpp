@@ -42,6 +42,7 @@ class ToOsfTick : public OsfTick {
   Eigen::PartialPivLU<Matrix> lu_;  // of G's first contact block
   double scale_ = 1.0, w_f_ = 1.0;
   Vector D_, h_task_, rho_, f_opt_, fc_, prev_;
+  Vector sf_fc_, cw_fc_, dist_, qf_f_;  // S_f f_c, C_w f_c, Y_w F_opt, Q_fᵀ F_opt
   Matrix Af_, SA_;
   QpBuffers qp_;
 };
