@@ -104,10 +104,7 @@ def replay_table(
     recording = record_states(source)
     replayers: dict[tuple[str, str], Replayer] = {}
     active: dict[tuple[str, str], list[tuple[int, ...]]] = {}
-    for spec in controllers:
-        # a row may carry settings: "hqp:strategy=nullspace:prox=1e-6"
-        controller, *settings = spec.split(":")
-        config = dict(kv.split("=", 1) for kv in settings)
+    for controller in controllers:
         cls = controller_class(controller)
         for impl in impls:
             if impl == "native" and not cls.native_schedule:
@@ -117,11 +114,11 @@ def replay_table(
                 controller,
                 solver,
                 mode=mode,
-                config={**config, "impl": impl},
+                config={"impl": impl},
                 overrides=overrides,
                 timing=True,
             )
-            key = (spec, impl)
+            key = (controller, impl)
             sets = active[key] = []
             replayer = Replayer(run, recording)
             replayer.on_step = keep_active(replayer, sets)
@@ -175,11 +172,7 @@ def replay_table(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--controllers",
-        default=",".join(CONTROLLERS),
-        help="comma-separated; with --replay a row may carry settings: hqp:strategy=nullspace",
-    )
+    parser.add_argument("--controllers", default=",".join(CONTROLLERS))
     parser.add_argument("--solver", default="daqp")
     parser.add_argument("--impls", default="python,native", help="python, native or both")
     parser.add_argument("--set", action="append", default=[], help="scenario override")

@@ -11,11 +11,7 @@ Strategies:
   inequalities (with their optimal slacks) kept, every previous equality held at its optimum.
   The held equalities are kept as an orthonormal basis of their row space, evaluated at the
   previous level's solution: the same feasible set as fixing each slack, but never a rank-
-  deficient or slightly inconsistent equality system for the solver. The hard equalities,
-  the same at every level, are met once: the QP is handed to the backend over y, x = x_p + Z y
-  (x_p their minimum-norm solution, Z an orthonormal null-space basis), the same QP with
-  n − rank fewer variables and none of their rows, which an active-set backend would otherwise
-  eliminate itself at every level.
+  deficient or slightly inconsistent equality system for the solver.
 * ``nullspace`` — the "sequential method": the previous equalities are eliminated, x = x_p + Z y
   with Z an orthonormal null-space basis (rank-revealing QR), so each level's QP is over y and the
   level's inequality slacks only; previous inequalities kept with fixed slacks.
@@ -538,10 +534,8 @@ def _solve_sequential(
     Eb = np.zeros((0, n))
     e = np.zeros(0)
     assert hard.b is not None
-    # one factorisation of the hard equalities: a null-space basis Z and the minimum-norm
-    # solution x_p (the cascade works over x = x_p + Z y; the null-space strategy shrinks Z
-    # level by level)
-    _, Z, x_p = _hard_factor(hard.A, hard.b)
+    # one factorisation of the hard equalities: bases and the minimum-norm solution x_p
+    R_hard, Z, x_p = _hard_factor(hard.A, hard.b)
     last = len(soft) - 1
     skip = False
     carried = 0.0  # relative violation the levels solved so far left (see FEAS_TOL)
@@ -584,12 +578,11 @@ def _solve_sequential(
                 continue
         if not nullspace:
             E = np.vstack(held_rows[1:]) if len(held_rows) > 1 else np.zeros((0, n))
-            # the held rows over y (x = x_p + Z y): an orthonormal basis of the row space of E Z,
-            # only what the hard equalities leave free, so that the QP's equalities keep full
-            # row rank (dependent rows that are only consistent to the solver's tolerance make
-            # active-set solvers declare the system inconsistent); held at the last optimum
-            Eb, _ = row_space_and_null_space(E @ Z)
-            e = Eb @ (Z.T @ (x - x_p)) if x is not None else np.zeros(0)
+            # only the part of the held rows not already fixed by the hard equalities, so that
+            # [hard A; E] keeps full row rank (dependent rows that are only consistent to the
+            # solver's tolerance make active-set solvers declare the system inconsistent)
+            Eb, _ = row_space_and_null_space(E - (E @ R_hard.T) @ R_hard)
+            e = Eb @ x if x is not None else np.zeros(0)
         center = x if x is not None else x_p
         # the bare level first; the proximal term only when the backend fails on it
         sol, x_new = None, None
@@ -601,8 +594,8 @@ def _solve_sequential(
                 )
             else:
                 sol, x_new = _cascade_level(
-                    hard, lv, Eb, e, Z, x_p, prev_C, prev_lo, prev_hi, solvers[i], relax,
-                    center, 0.0, extra, True,
+                    hard, lv, Eb, e, prev_C, prev_lo, prev_hi, solvers[i], relax, center, 0.0,
+                    extra, True,
                 )  # fmt: skip
             if sol is not None:
                 _record(timer, sol, lv.name)
@@ -615,8 +608,8 @@ def _solve_sequential(
                     )
                 else:
                     sol, x_new = _cascade_level(
-                        hard, lv, Eb, e, Z, x_p, prev_C, prev_lo, prev_hi, handle, relax,
-                        center, eps, extra,
+                        hard, lv, Eb, e, prev_C, prev_lo, prev_hi, handle, relax, center, eps,
+                        extra,
                     )  # fmt: skip
                 if sol is not None:
                     _record(timer, sol, lv.name)
@@ -741,14 +734,12 @@ def _add_merged(
             g[:d] += f.weight * (FZ.T @ (f.A @ x_p - f.b))
 
 
-def _own_multipliers_vanish(sol: Solution, r: int, primal: Array | None = None) -> bool:
-    """The last ``r`` inequality rows of the QP have (numerically) zero multipliers; their
-    scale: the largest multiplier and |entry| of ``primal`` (by default the QP's solution)."""
+def _own_multipliers_vanish(sol: Solution, r: int) -> bool:
+    """The last ``r`` inequality rows of the QP have (numerically) zero multipliers."""
     if sol.z is None or sol.x is None:
         return False
     z = np.abs(sol.z[-r:])
-    x = sol.x if primal is None else primal
-    scale = max(1.0, float(np.abs(sol.z).max(initial=0.0)), float(np.abs(x).max()))
+    scale = max(1.0, float(np.abs(sol.z).max(initial=0.0)), float(np.abs(sol.x).max()))
     # a multiplier at the solver's tolerance changes the level's optimum at that tolerance only
     return bool(z.max(initial=0.0) <= 1e-6 * scale)
 
@@ -758,8 +749,6 @@ def _cascade_level(
     lv: PriorityLevel,
     E: Array,
     e: Array,
-    Zh: Array,
-    xh: Array,
     prev_C: list[Array],
     prev_lo: list[Array],
     prev_hi: list[Array],
@@ -770,85 +759,55 @@ def _cascade_level(
     merged: list[PriorityLevel] = (),  # type: ignore[assignment]
     hard_own: bool = False,
 ) -> tuple[Solution, Array | None]:
-    """QP over z = (y, w, v) with x = x_h + Z_h y: min ½‖w‖² + ½‖v‖² + ½ prox ‖P (x − center)‖²,
-    A x − w = b, l ≤ C x − v ≤ u, E y = e (the held equalities, over y), the hard inequalities
-    and box; ``merged`` finals added to the cost; ``hard_own``: v = 0 (no slack variables),
-    accepted only when the level's inequality multipliers vanish.
-
-    x_h and the orthonormal Z_h are a solution and a null-space basis of the hard equalities,
-    which x_h + Z_h y then meets for every y: the same QP as over (x, w, v) with those equalities
-    as constraints (the held ones stay constraints), handed to the backend with n − rank of
-    them fewer variables and none of those rows (an active-set backend otherwise eliminates
-    them itself, at every level)."""
+    """QP over z = (x, w, v): min ½‖w‖² + ½‖v‖² + ½ prox ‖x − center‖², A x − w = b,
+    l ≤ C x − v ≤ u, E x = e; ``merged`` finals added to the cost; ``hard_own``: v = 0 (no
+    slack variables), accepted only when the level's inequality multipliers vanish."""
+    n = hard.n
     assert lv.A is not None and lv.C is not None and lv.b is not None
     assert lv.l is not None and lv.u is not None
-    assert hard.C is not None and hard.l is not None and hard.u is not None
-    d = Zh.shape[1]
     m, r_own = lv.A.shape[0], lv.C.shape[0]
     r = 0 if hard_own else r_own
-    nx = d + m + r
+    nx = n + m + r
     H = np.zeros((nx, nx))
     g = np.zeros(nx)
     if prox:
         # regularise only the feasible directions (those the held equalities leave free) that
-        # the level's objective does not see: P = Z_f N Z_fᵀ with Z_f = Z_h Z_e, Z_e a null-space
-        # basis of E; over y, Z_hᵀ P Z_h = Z_e N Z_eᵀ
-        _, Ze = row_space_and_null_space(E)
-        Py = Ze @ _null_projector(lv.A @ (Zh @ Ze)) @ Ze.T
-        H[:d, :d] = prox * Py
-        g[:d] = prox * (Py @ (Zh.T @ (xh - center)))
-    H[d:, d:] = np.eye(m + r)
-    _add_merged(H, g, merged, Zh, xh)
-    A_rows = np.zeros((E.shape[0] + m, nx))
-    A_rows[: E.shape[0], :d] = E
-    A_rows[E.shape[0] :, :d] = lv.A @ Zh
-    A_rows[E.shape[0] :, d : d + m] = -np.eye(m)
-    b_rows = np.concatenate([e, lv.b - lv.A @ xh])
-    C_list: list[Array] = []
-    lo: list[Array] = []
-    hi: list[Array] = []
-
-    def add(C: Array, lower: Array, upper: Array, own: bool = False) -> None:
-        if not C.shape[0]:
-            return
-        if not own:
-            lower, upper = _widen(lower, upper, relax)
-        block = np.zeros((C.shape[0], nx))
-        block[:, :d] = C @ Zh
-        if own and r:
-            block[:, d + m :] = -np.eye(r)
-        shift = C @ xh
-        C_list.append(block)
-        lo.append(lower - shift)
-        hi.append(upper - shift)
-
-    add(hard.C, hard.l, hard.u)
-    if hard.lb is not None or hard.ub is not None:
-        n = hard.n
-        lower = hard.lb if hard.lb is not None else np.full(n, -np.inf)
-        upper = hard.ub if hard.ub is not None else np.full(n, np.inf)
-        finite = np.isfinite(lower) | np.isfinite(upper)
-        add(np.eye(n)[finite], lower[finite], upper[finite])
-    for Cp, lp, hp in zip(prev_C, prev_lo, prev_hi, strict=True):
-        add(Cp, lp, hp)
-    add(lv.C, lv.l, lv.u, own=True)
-    problem = Problem(
-        H,
-        g,
-        A_rows,
-        b_rows,
-        np.vstack(C_list) if C_list else np.zeros((0, nx)),
-        np.concatenate(lo) if lo else np.zeros(0),
-        np.concatenate(hi) if hi else np.zeros(0),
-        name=lv.name,
-    )
+        # the level's objective does not see
+        assert hard.A is not None
+        _, Zf = row_space_and_null_space(np.vstack([hard.A, E]))
+        P = Zf @ _null_projector(lv.A @ Zf) @ Zf.T
+        H[:n, :n] = prox * P
+        g[:n] = -prox * (P @ center)
+    H[n:, n:] = np.eye(m + r)
+    _add_merged(H[:n, :n], g[:n], merged, None, None)
+    eq_rows: list[tuple[Array, Array]] = []
+    if E.shape[0]:
+        eq_rows.append((np.hstack([E, np.zeros((E.shape[0], m + r))]), e))
+    if m:
+        rows = np.zeros((m, nx))
+        rows[:, :n] = lv.A
+        rows[:, n : n + m] = -np.eye(m)
+        eq_rows.append((rows, lv.b))
+    C_rows: list[Array] = [np.hstack([Cp, np.zeros((Cp.shape[0], m + r))]) for Cp in prev_C]
+    widened = [_widen(lp, hp, relax) for lp, hp in zip(prev_lo, prev_hi, strict=True)]
+    lo = [w[0] for w in widened]
+    hi = [w[1] for w in widened]
+    if r_own:
+        block = np.zeros((r_own, nx))
+        block[:, :n] = lv.C
+        if r:
+            block[:, n + m :] = -np.eye(r)
+        C_rows.append(block)
+        lo.append(lv.l)
+        hi.append(lv.u)
+    problem = _with_hard(hard, H, g, C_rows, lo, hi, nx, lv.name, eq_rows, relax)
     sol = solver.solve(problem)
-    x = None if sol.x is None else xh + Zh @ sol.x[:d]
-    sol, x = _checked(sol, x, hard, prev_C, prev_lo, prev_hi, relax, solver)
-    if not sol.success or x is None or sol.x is None:
+    sol, x = _checked(
+        sol, None if sol.x is None else sol.x[:n], hard, prev_C, prev_lo, prev_hi, relax, solver
+    )
+    if not sol.success or x is None:
         return sol, None
-    # (the multipliers' scale as over z = (x, w, v))
-    if hard_own and not _own_multipliers_vanish(sol, r_own, np.concatenate([x, sol.x[d:]])):
+    if hard_own and not _own_multipliers_vanish(sol, r_own):
         return sol, None
     return sol, x
 

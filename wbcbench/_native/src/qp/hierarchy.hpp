@@ -10,7 +10,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <Eigen/QR>
 #include <memory>
 #include <string>
 #include <vector>
@@ -84,29 +83,6 @@ class LevelSolver {
                      const QpBuffers& qp, Vector& x, Vector& z, bool& has_z) = 0;
 };
 
-// Orthonormal bases of the row space and null space of E (p, n) and the minimum-norm solution
-// of E x = b, from a column-pivoted Householder QR of Eᵀ held with its workspace: factor()
-// computes in place, so repeated calls of the same sizes allocate nothing.
-class Bases {
- public:
-  // rank counts |R_ii| > tol · max(1, |R_00|); R (rank, n) and Z (n, n − rank) are formed
-  // when asked for
-  void factor(const Matrix& E, bool want_R, bool want_Z, double tol = 1e-10);
-  // after factor(E, ...): the minimum-norm solution of E x = b into x
-  void min_norm(const Matrix& E, const Vector& b, Vector& x);
-  int rank() const { return rank_; }
-  const Matrix& R() const { return R_; }
-  const Matrix& Z() const { return Z_; }
-
- private:
-  Eigen::ColPivHouseholderQR<Matrix> qr_;
-  Eigen::CompleteOrthogonalDecomposition<Matrix> cod_;  // (a rank-deficient E only)
-  Matrix Q1_, R_, Z_;
-  Vector work_, rhs_;
-  int rank_ = 0;
-  bool empty_ = true;  // E had no rows (or no columns)
-};
-
 class Hierarchy {
  public:
   // the finals merged into a level's cost (pointers into the caller's levels: no copies)
@@ -116,11 +92,8 @@ class Hierarchy {
   Hierarchy(const Hierarchy&) = delete;  // owns the buffers the Python views read
   Hierarchy& operator=(const Hierarchy&) = delete;
   // soft: the levels, then the finals (as levels with no inequalities): n_finals of them
-  // (the result is this object's, valid until the next solve: a steady solve re-uses its
-  // storage)
-  const HierarchyResult& solve(const HardConstraints& hard,
-                               const std::vector<PriorityLevel>& soft, int n_finals,
-                               const HierarchyOptions& options, LevelSolver& solver);
+  HierarchyResult solve(const HardConstraints& hard, const std::vector<PriorityLevel>& soft,
+                        int n_finals, const HierarchyOptions& options, LevelSolver& solver);
 
   int n_slots() const { return static_cast<int>(slots_.size()); }
   const QpBuffers& slot(int i) const { return *slots_.at(i); }
@@ -140,39 +113,31 @@ class Hierarchy {
   // the slot a QP of handle `handle` is assembled into: kind 0 the level's own QP, 1 the QP of
   // a level held hard inside the next one's (same handle, another structure)
   QpBuffers& prepare(int handle, int kind, int n, int n_eq, int n_in, bool box);
-  void call(LevelSolver& solver, const std::string& level, Answer& a);
+  Answer call(LevelSolver& solver, const std::string& level);
   // the largest relative violation x leaves on the hard constraints and the held inequalities
-  double held_violation(const HardConstraints& hard, const Eigen::Ref<const Vector>& x) const;
+  double held_violation(const HardConstraints& hard, const Vector& x) const;
   // whether x, the answer of a QP whose held bounds were widened by relax, meets them to
   // accept_tol_ relative to the problem's scale; if not, a is marked failed with the reason
   // (see _checked)
-  bool check(const HardConstraints& hard, const Eigen::Ref<const Vector>& x, double relax,
-             Answer& a) const;
+  bool check(const HardConstraints& hard, const Vector& x, double relax, Answer& a) const;
 
-  void solve_weighted(const HardConstraints& hard, const std::vector<PriorityLevel>& soft,
-                      LevelSolver& solver);
+  HierarchyResult solve_weighted(const HardConstraints& hard,
+                                 const std::vector<PriorityLevel>& soft, LevelSolver& solver);
   // soft[0, n_levels) are solved in turn; the rest (finals) are merged into the last one's cost
-  void solve_sequential(const HardConstraints& hard, const std::vector<PriorityLevel>& soft,
-                        int n_levels, int n_handles, bool nullspace, double prox,
-                        bool slack_free_first, LevelSolver& solver);
-  // the cascade's level QP over z = (y, w, v), x = x_h + Z_h y, the held equalities E y = e
-  // (see _cascade_level)
-  void cascade_level(const HardConstraints& hard, const PriorityLevel& lv, const Matrix& E,
-                     const Vector& e, const Matrix& Zh, const Vector& xh, int handle,
-                     double relax, const Vector& center, double prox, const Merged& merged,
-                     bool hard_own, LevelSolver& solver, Answer& a);
+  HierarchyResult solve_sequential(const HardConstraints& hard,
+                                   const std::vector<PriorityLevel>& soft, int n_levels,
+                                   int n_handles, bool nullspace, double prox,
+                                   bool slack_free_first, LevelSolver& solver);
+  // the cascade's level QP over z = (x, w, v) (see _cascade_level)
+  Answer cascade_level(const HardConstraints& hard, const PriorityLevel& lv, const Matrix& E,
+                       const Vector& e, int handle, double relax, const Vector& center,
+                       double prox, const Merged& merged, bool hard_own,
+                       LevelSolver& solver);
   // the null-space method's level QP over (y, v), x = x_p + Z y (see _nullspace_level)
-  void nullspace_level(const HardConstraints& hard, const PriorityLevel& lv, const Vector& x_p,
-                       const Matrix& Z, int handle, int kind, double relax, double prox,
-                       const Merged& merged, bool hard_own, LevelSolver& solver, Answer& a);
-  // the finals merged into a level's cost: H += w FᵀF, g −= w Fᵀ f over x (Z null), or over
-  // y with x = x_p + Z y
-  void add_merged(Eigen::Ref<RowMatrix> H, Eigen::Ref<Vector> g, const Merged& merged,
-                  const Matrix* Z, const Vector* x_p);
-  // the slacks of level lv at x into the result's next entry
-  void add_result(const PriorityLevel& lv, const Vector& x);
-  // hold a level's inequalities for the levels below: rows C, bounds [lo, hi] (+ shift)
-  void hold(const Matrix& C, const Vector& lo, const Vector& hi, const Vector* shift);
+  Answer nullspace_level(const HardConstraints& hard, const PriorityLevel& lv, const Vector& x_p,
+                         const Matrix& Z, int handle, int kind, double relax,
+                         double prox, const Merged& merged, bool hard_own,
+                         LevelSolver& solver);
 
   int pool_;
   std::vector<std::unique_ptr<QpBuffers>> slots_;
@@ -181,31 +146,9 @@ class Hierarchy {
   double solver_seconds_ = 0.0;
   double accept_tol_ = 1e-5;  // of the solve in progress (HierarchyOptions::accept_tol)
   // the inequalities the levels solved so far pass on, their slacks fixed (prev_C, prev_lo,
-  // prev_hi of the reference): the first n_held_ entries (the rest keep their storage)
-  struct Held {
-    const Matrix* C = nullptr;  // the level's rows (the caller's levels outlive a solve)
-    Vector lo, hi;
-  };
-  std::vector<Held> held_;
-  int n_held_ = 0;
-  // workspaces, sized at the first solve and kept (a steady solve allocates nothing)
-  HierarchyResult result_;
-  int n_results_ = 0;  // entries of result_.levels filled
-  Answer answer_;
-  Merged merged_;
-  std::vector<const Matrix*> held_rows_;
-  std::vector<Eigen::Index> box_rows_;
-  Bases hard_;  // of the hard equalities
-  // per level: the held rows over y and their bases, e; the null-space bases
-  struct LevelWork {
-    Matrix E, Z, AZ;
-    Vector e, x_l, y, rhs;
-    Bases bases;
-  };
-  std::vector<LevelWork> work_;
-  Matrix fz_, az_;  // F Z of a merged final; A Z of a level
-  Vector x_, x_p_, center_;
-  Vector cx_;  // C x of one block of rows
+  // prev_hi of the reference)
+  std::vector<Matrix> prev_C_;
+  std::vector<Vector> prev_lo_, prev_hi_;
 };
 
 // Orthonormal bases (R (rank, n), Z (n, n − rank)) of the row space and null space of E (p, n),
