@@ -39,8 +39,8 @@ CONTROLLERS = ["qp_wbc", "to_osf", "osf_hqp", "hqp", "lqp", "rc_lqp"]
 KNOWN: dict[tuple[str, str, str], tuple[int, str]] = {
     # DAQP's own: its equality elimination allocates the reduced problem at every update of
     # H or M (daqp_update_ldp); a QP of a new size, or a solver's first, sets up a workspace
-    ("qp_wbc", "steady", "daqp"): (15, "DAQP's equality elimination at each update"),
-    ("qp_wbc", "change", "daqp"): (15, "DAQP's equality elimination at each update"),
+    ("qp_wbc", "steady", "daqp"): (23, "DAQP's equality elimination at each update"),
+    ("qp_wbc", "change", "daqp"): (23, "DAQP's equality elimination at each update"),
     ("qp_wbc", "first", "daqp"): (72, "DAQP's set-up of the set's solver"),
     ("hqp", "steady", "daqp"): (108, "DAQP's equality elimination at each update"),
     ("hqp", "change", "daqp"): (306, "DAQP's set-up of the new sizes' workspaces"),
@@ -53,40 +53,39 @@ KNOWN: dict[tuple[str, str, str], tuple[int, str]] = {
     ("lqp", "first", "daqp"): (86, "DAQP's set-up of the new sizes' workspaces"),
     ("rc_lqp", "change", "daqp"): (114, "DAQP's set-up of the new sizes' workspaces"),
     ("rc_lqp", "first", "daqp"): (143, "DAQP's set-up of the new sizes' workspaces"),
-    # the hierarchy ticks around their level solves (Hierarchy::solve itself allocates nothing
-    # when steady): the levels' assembly in the controllers' ticks, result copies and the solver
-    # records (NativeSolvers); a change of contacts configures the tick again (its levels and
-    # slots re-sized)
-    ("hqp", "steady", "core"): (96, "the hierarchy's level solves"),
-    ("hqp", "steady", "libstdc++"): (3, "the hierarchy's level solves"),
-    ("hqp", "change", "core"): (338, "the hierarchy's level solves, re-configured"),
-    ("hqp", "change", "libstdc++"): (17, "the hierarchy's level solves, re-configured"),
-    ("hqp", "first", "core"): (336, "the hierarchy's level solves, re-configured"),
-    ("hqp", "first", "libstdc++"): (23, "the hierarchy's level solves, re-configured"),
-    ("lqp", "steady", "core"): (56, "the hierarchy's level solves"),
-    ("lqp", "steady", "libstdc++"): (3, "the hierarchy's level solves"),
-    ("lqp", "change", "core"): (243, "the hierarchy's level solves, re-configured"),
-    ("lqp", "change", "libstdc++"): (14, "the hierarchy's level solves, re-configured"),
-    ("lqp", "first", "core"): (237, "the hierarchy's level solves, re-configured"),
-    ("lqp", "first", "libstdc++"): (20, "the hierarchy's level solves, re-configured"),
-    ("rc_lqp", "steady", "core"): (191, "the hierarchies' level solves and the preview"),
-    ("rc_lqp", "steady", "libstdc++"): (11, "the hierarchies' level solves"),
-    ("rc_lqp", "change", "core"): (486, "the hierarchies' level solves, re-configured"),
-    ("rc_lqp", "change", "libstdc++"): (20, "the hierarchies' level solves, re-configured"),
-    ("rc_lqp", "first", "core"): (570, "the hierarchies' level solves, re-configured"),
-    ("rc_lqp", "first", "libstdc++"): (47, "the hierarchies' level solves, re-configured"),
+    # the hierarchy's level solves (qp/hierarchy.cpp: factorisations and intermediates made per
+    # call) and their records (NativeSolvers); a change of contacts configures the tick again
+    # (its levels and slots re-sized)
+    ("hqp", "steady", "core"): (240, "the hierarchy's level solves"),
+    ("hqp", "steady", "libstdc++"): (11, "the hierarchy's level solves"),
+    ("hqp", "change", "core"): (428, "the hierarchy's level solves, re-configured"),
+    ("hqp", "change", "libstdc++"): (24, "the hierarchy's level solves, re-configured"),
+    ("hqp", "first", "core"): (422, "the hierarchy's level solves, re-configured"),
+    ("hqp", "first", "libstdc++"): (30, "the hierarchy's level solves, re-configured"),
+    ("lqp", "steady", "core"): (215, "the hierarchy's level solves"),
+    ("lqp", "steady", "libstdc++"): (14, "the hierarchy's level solves"),
+    ("lqp", "change", "core"): (341, "the hierarchy's level solves, re-configured"),
+    ("lqp", "change", "libstdc++"): (24, "the hierarchy's level solves, re-configured"),
+    ("lqp", "first", "core"): (335, "the hierarchy's level solves, re-configured"),
+    ("lqp", "first", "libstdc++"): (30, "the hierarchy's level solves, re-configured"),
+    ("rc_lqp", "steady", "core"): (456, "the hierarchies' level solves and the preview"),
+    ("rc_lqp", "steady", "libstdc++"): (32, "the hierarchies' level solves"),
+    ("rc_lqp", "change", "core"): (647, "the hierarchies' level solves, re-configured"),
+    ("rc_lqp", "change", "libstdc++"): (38, "the hierarchies' level solves, re-configured"),
+    ("rc_lqp", "first", "core"): (717, "the hierarchies' level solves, re-configured"),
+    ("rc_lqp", "first", "libstdc++"): (63, "the hierarchies' level solves, re-configured"),
     # the OSF ticks' own plumbing around the parameters (OsfModel::compute allocates nothing
     # once sized); a change configures the tick again and re-sizes the parameters' buffers
     ("to_osf", "steady", "core"): (29, "the tick outside the OSF parameters"),
     ("to_osf", "change", "core"): (236, "the OSF parameters, re-configured"),
     ("to_osf", "change", "libstdc++"): (11, "re-configured for the new contact set"),
     ("to_osf", "first", "core"): (219, "the OSF parameters, re-configured"),
-    ("to_osf", "first", "libstdc++"): (15, "re-configured for the new contact set"),
+    ("to_osf", "first", "libstdc++"): (17, "re-configured for the new contact set"),
     ("osf_hqp", "steady", "core"): (12, "the tick outside the OSF parameters"),
     ("osf_hqp", "change", "core"): (272, "the OSF parameters, re-configured"),
     ("osf_hqp", "change", "libstdc++"): (11, "re-configured for the new contact set"),
     ("osf_hqp", "first", "core"): (249, "the OSF parameters, re-configured"),
-    ("osf_hqp", "first", "libstdc++"): (15, "re-configured for the new contact set"),
+    ("osf_hqp", "first", "libstdc++"): (17, "re-configured for the new contact set"),
 }
 
 
