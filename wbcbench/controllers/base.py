@@ -325,13 +325,14 @@ class Controller(ABC):
         ``lw``, ``uw`` (unscaled), ``nc`` and the tasks of that set; whether it changed."""
         contacts, Cw, lw, uw, _, _ = self.contact_set(active)
         changed = active != self.active_contacts
-        self.frames = [c.frame for c in contacts]
-        self.contacts = contacts
-        if changed:
+        if changed:  # (the same set again: frames, Cw, nc and tasks are already its own)
+            self.frames = [c.frame for c in contacts]
+            self.contacts = contacts
             self.active_tasks = stance_tasks(self.ctx.tasks, set(self.frames))
-        self.Cw, self.nc = Cw, contacts_dim(contacts)
+            self.Cw, self.nc = Cw, contacts_dim(contacts)
+            self.active_contacts = active
+        # fresh arrays every tick: a Python QP of the last tick may still hold views of them
         self.lw, self.uw = lw.copy(), uw.copy()
-        self.active_contacts = active
         return changed
 
     def contact_set(self, active: tuple[int, ...]) -> tuple[Any, ...]:
