@@ -196,11 +196,12 @@ def test_native_equals_python_across_lift_off_and_touchdown(
             relative(x, y) for x, y in ((a.tau, b.tau), (a.qdd, b.qdd), (a.wrench, b.wrench))
         )
         if spread_ref is None:
-            # the OSF QPs' data agree to rounding amplified through Λ (DATA_TOLERANCE): their
-            # answers to that rounding times the reduced Hessian's condition, as in
-            # tests/test_native_equality.py
+            # the QPs' data agree to rounding (for the OSF QPs amplified through Λ:
+            # DATA_TOLERANCE); their answers to that rounding times the reduced Hessian's
+            # condition, as in tests/test_native_equality.py (qp_wbc's weights 1e9 … 1 make
+            # it 5e6 to 9e7 on these states)
             kappa = max(reduced_condition(p) for p in recorder.problems)
-            bound = 1e-8 if name == "qp_wbc" else max(1e-8, kappa * 100 * np.finfo(float).eps)
+            bound = max(1e-8, kappa * 100 * np.finfo(float).eps)
             assert diff <= bound, (t, diff, bound)
             continue
         assert slacks(a.diagnostics).keys() == slacks(b.diagnostics).keys()

@@ -88,6 +88,13 @@ def test_ok_steps_realise_their_prediction(
 WALK_TIMES = [1.15, 1.199, 1.2, 1.201, 1.6, 1.999, 2.0, 2.001, 2.05]
 
 
+def walk_solver(controller: str) -> str:
+    """The exact backend on the walking states: quadprog for hqp too, whose lower levels DAQP
+    reports primal infeasible (or solved outside a held bound) on most of these perturbed
+    states, in both impls, where quadprog solves them."""
+    return "quadprog" if controller == "hqp" else exact_solver(controller)
+
+
 @pytest.mark.parametrize(("controller", "impl"), WALK_CASES)
 def test_walking_ticks_realise_their_prediction_on_the_active_contacts(
     tocabi: Robot, controller: str, impl: str
@@ -100,7 +107,7 @@ def test_walking_ticks_realise_their_prediction_on_the_active_contacts(
     run = plan_run(
         "tocabi_walk",
         controller,
-        exact_solver(controller),
+        walk_solver(controller),
         tier="high",
         config={"impl": impl},
         overrides=["walk.steps=2", "duration=4.7"],
@@ -143,5 +150,6 @@ def test_walking_ticks_realise_their_prediction_on_the_active_contacts(
             assert not full[6 * i : 6 * i + 6].any()
     # hqp's cascade re-imposes each level's optimum as equalities on the next, which the
     # backend often finds inconsistent once a wrench or torque bound is active (a failed tick
-    # that says so); the others keep (nearly) every tick
+    # that says so: 3 of these 9 ticks solve in the native impl, 4 in the Python one); the
+    # others keep (nearly) every tick
     assert ok >= (1 if controller == "hqp" else len(WALK_TIMES) - 1), ok
