@@ -157,8 +157,10 @@ class Hierarchy {
   // what one level needs, sized by the first solve of a shape and kept
   struct LevelWork {
     Matrix E, EQ, Ep;  // the held rows, their part the hard equalities fix, the rest
-    Matrix AZ, Z;      // A Z of a level and the null space left after it
-    Matrix pAZ, pZ;    // the same for a level held hard in its pair
+    Matrix AZ, Z;      // A Z of the level and the null space left after it
+    // a level held hard inside the next one's QP: the null space Z_l left after it, and
+    // A Z_l of the next level (kind 1's QP)
+    Matrix pAZ, pZ;
     Vector e, x_l, y, rhs;
     Bases bases, pbases;
     // the proximal retry's projector
