@@ -53,27 +53,26 @@ KNOWN: dict[tuple[str, str, str], tuple[int, str]] = {
     ("lqp", "first", "daqp"): (86, "DAQP's set-up of the new sizes' workspaces"),
     ("rc_lqp", "change", "daqp"): (114, "DAQP's set-up of the new sizes' workspaces"),
     ("rc_lqp", "first", "daqp"): (143, "DAQP's set-up of the new sizes' workspaces"),
-    # the hierarchy's level solves (qp/hierarchy.cpp: factorisations and intermediates made per
-    # call) and their records (NativeSolvers); a change of contacts configures the tick again
-    # (its levels and slots re-sized)
-    ("hqp", "steady", "core"): (240, "the hierarchy's level solves"),
-    ("hqp", "steady", "libstdc++"): (11, "the hierarchy's level solves"),
-    ("hqp", "change", "core"): (428, "the hierarchy's level solves, re-configured"),
-    ("hqp", "change", "libstdc++"): (24, "the hierarchy's level solves, re-configured"),
-    ("hqp", "first", "core"): (422, "the hierarchy's level solves, re-configured"),
-    ("hqp", "first", "libstdc++"): (30, "the hierarchy's level solves, re-configured"),
-    ("lqp", "steady", "core"): (215, "the hierarchy's level solves"),
-    ("lqp", "steady", "libstdc++"): (14, "the hierarchy's level solves"),
-    ("lqp", "change", "core"): (341, "the hierarchy's level solves, re-configured"),
-    ("lqp", "change", "libstdc++"): (24, "the hierarchy's level solves, re-configured"),
-    ("lqp", "first", "core"): (335, "the hierarchy's level solves, re-configured"),
-    ("lqp", "first", "libstdc++"): (30, "the hierarchy's level solves, re-configured"),
-    ("rc_lqp", "steady", "core"): (456, "the hierarchies' level solves and the preview"),
-    ("rc_lqp", "steady", "libstdc++"): (32, "the hierarchies' level solves"),
-    ("rc_lqp", "change", "core"): (647, "the hierarchies' level solves, re-configured"),
-    ("rc_lqp", "change", "libstdc++"): (38, "the hierarchies' level solves, re-configured"),
-    ("rc_lqp", "first", "core"): (717, "the hierarchies' level solves, re-configured"),
-    ("rc_lqp", "first", "libstdc++"): (63, "the hierarchies' level solves, re-configured"),
+    # hqp and lqp: the hierarchy allocates nothing once a shape of its problem and the sizes
+    # of its level QPs have been solved (a workspace per shape, a QP slot per size), and the
+    # ticks keep a workspace per contact set, configured when they are made. A change of
+    # contacts still re-sizes the C++ solver of each level handle to the set's QP (QpSolver's
+    # snapshot and solution, DaqpSolver::load); a set held for the first time also sizes the
+    # hierarchy's workspace and slots for its shape
+    ("hqp", "change", "core"): (105, "the C++ solvers re-sized to the set's level QPs"),
+    ("hqp", "first", "core"): (257, "the hierarchy sized for the new shape, the solvers re-sized"),
+    ("hqp", "first", "libstdc++"): (18, "the hierarchy sized for the new shape"),
+    ("lqp", "change", "core"): (60, "the C++ solvers re-sized to the set's level QPs"),
+    ("lqp", "first", "core"): (192, "the hierarchy sized for the new shape, the solvers re-sized"),
+    ("lqp", "first", "libstdc++"): (20, "the hierarchy sized for the new shape"),
+    # rc_lqp's own level solves and preview (qp/hierarchy.cpp allocates nothing once sized;
+    # the tick copies its results and configures its fallback again at a change)
+    ("rc_lqp", "steady", "core"): (156, "the tick around its hierarchies, and the preview"),
+    ("rc_lqp", "steady", "libstdc++"): (11, "the tick around its hierarchies"),
+    ("rc_lqp", "change", "core"): (320, "the tick's hierarchies re-configured"),
+    ("rc_lqp", "change", "libstdc++"): (20, "the tick's hierarchies re-configured"),
+    ("rc_lqp", "first", "core"): (600, "the tick's hierarchies re-configured"),
+    ("rc_lqp", "first", "libstdc++"): (80, "the tick's hierarchies re-configured"),
     # the OSF ticks' own plumbing around the parameters (OsfModel::compute allocates nothing
     # once sized); a change configures the tick again and re-sizes the parameters' buffers
     ("to_osf", "steady", "core"): (29, "the tick outside the OSF parameters"),

@@ -99,6 +99,8 @@ class Hqp(NativeController):
     config: HqpConfig
     tick_type = "HqpTick"
     native_schedule = True
+    # a workspace per contact set in the tick (its levels, constraints and hierarchy sizes)
+    contact_workspaces = True
 
     @classmethod
     def impl_for(cls, config: ControllerConfig) -> str:

@@ -210,6 +210,8 @@ class Lqp(NativeController):
     config: LqpConfig
     tick_type = "LqpTick"
     native_schedule = True
+    # a workspace per contact set in the tick (its levels, constraints and hierarchy sizes)
+    contact_workspaces = True
 
     def __init__(self, ctx: ControllerContext, config: ControllerConfig | None = None) -> None:
         super().__init__(ctx, config)

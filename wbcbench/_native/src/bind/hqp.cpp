@@ -51,7 +51,9 @@ WBCBENCH_BIND(hqp, kController, m) {
       .def_prop_ro("handles", &HqpTick::handles)
       .def("slot", [](const HqpTick& t, int i) -> QpBuffers& { return slot_of(t.hierarchy(), i); },
            nb::arg("i"), kView)
-      .def_prop_ro("result", [](const HqpTick& t) { return t.result(); })
+      // a view of the tick's result, overwritten by the next run (read it before)
+      .def_prop_ro(
+          "result", [](const HqpTick& t) -> const HierarchyResult& { return t.result(); }, kView)
       .def_prop_ro("tau", &HqpTick::tau, kView)
       .def_prop_ro("qdd", &HqpTick::qdd, kView)
       .def_prop_ro("wrench", &HqpTick::wrench, kView);

@@ -46,7 +46,10 @@ WBCBENCH_BIND(lqp, kController, m) {
       .def_prop_ro("handles", [](const LqpTick& t) { return t.lqp().handles(); })
       .def("slot", [](const LqpTick& t, int i) -> QpBuffers& { return slot_of(t.lqp().hierarchy(), i); },
            nb::arg("i"), kView)
-      .def_prop_ro("result", [](const LqpTick& t) { return t.lqp().result(); })
+      // a view of the tick's result, overwritten by the next run (read it before)
+      .def_prop_ro(
+          "result", [](const LqpTick& t) -> const HierarchyResult& { return t.lqp().result(); },
+          kView)
       .def_prop_ro("tau", [](const LqpTick& t) -> const Vector& { return t.lqp().tau(); }, kView)
       .def_prop_ro("qdd", [](const LqpTick& t) -> const Vector& { return t.lqp().qdd(); }, kView)
       .def_prop_ro("wrench", [](const LqpTick& t) -> const Vector& { return t.lqp().wrench(); },

@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 
 #include "controllers/lqp.hpp"
@@ -20,52 +21,85 @@ HqpTick::HqpTick(const std::string& model, const std::vector<std::string>& task_
   dyn_.set_inverse(false);  // the HQP reads M, never M⁻¹
 }
 
+void HqpTick::contacts_switched(int set) {
+  const auto i = static_cast<size_t>(set);
+  w_ = i < work_.size() ? work_[i].get() : nullptr;
+}
+
+HqpTick::Workspace& HqpTick::work() {
+  if (w_ == nullptr)
+    throw std::logic_error("hqp: the tick's contact set is not configured (configure first)");
+  return *w_;
+}
+
+const Vector& HqpTick::wrench() const {
+  static const Vector none;
+  return w_ == nullptr ? none : w_->wrench;
+}
+
+const HierarchyResult& HqpTick::result() const {
+  static const HierarchyResult none;
+  return solved_ ? hierarchy_.result() : none;
+}
+
 int HqpTick::handles() const {
-  return s_.strategy == Strategy::kWeighted ? 1 : static_cast<int>(soft_.size());
+  if (w_ == nullptr) return 0;
+  return w_->s.strategy == Strategy::kWeighted ? 1 : static_cast<int>(w_->soft.size());
 }
 
 void HqpTick::configure(const HqpSettings& settings) {
-  s_ = settings;
   n_ = nv();
   k_ = k();
-  nc_ = static_cast<int>(dyn_.contact_jacobian().rows());
-  const int nx = n_ + k_ + nc_;
-  const int nw = static_cast<int>(s_.Cw.rows());
-  if (s_.tau_max.size() != k_) throw std::invalid_argument("hqp: tau_max of wrong size");
-  if (s_.Cw.cols() != nc_ || s_.lw.size() != nw || s_.uw.size() != nw)
+  const int nc = static_cast<int>(dyn_.contact_jacobian().rows());
+  const int nx = n_ + k_ + nc;
+  const int nw = static_cast<int>(settings.Cw.rows());
+  if (settings.tau_max.size() != k_) throw std::invalid_argument("hqp: tau_max of wrong size");
+  if (settings.Cw.cols() != nc || settings.lw.size() != nw || settings.uw.size() != nw)
     throw std::invalid_argument("hqp: wrench constraints of wrong size");
-  if (s_.priorities.size() != s_.groups.size())
+  if (settings.priorities.size() != settings.groups.size())
     throw std::invalid_argument("hqp: one priority per task group");
-  if (static_cast<int>(s_.force_level.size()) != tasks_.size())
+  if (static_cast<int>(settings.force_level.size()) != tasks_.size())
     throw std::invalid_argument("hqp: one force_level flag per task");
-  if (s_.finals.empty() || s_.level_weights.empty() ||
-      (s_.wrench_weights.size() != 6 && s_.wrench_weights.size() != nc_))
+  if (settings.finals.empty() || settings.level_weights.empty() ||
+      (settings.wrench_weights.size() != 6 && settings.wrench_weights.size() != nc))
     throw std::invalid_argument(
         "hqp: finals, level_weights and 6 wrench_weights (or one per wrench row) needed");
+  const auto set = static_cast<size_t>(set_);
+  if (work_.size() <= set) work_.resize(set + 1);
+  if (!work_[set]) work_[set] = std::make_unique<Workspace>();
+  Workspace& w = *(w_ = work_[set].get());
+  w.s = settings;
+  w.nc = nc;
+  const HqpSettings& s = w.s;
   // hard: M q̈ + h = Sᵀ Γ + J_cᵀ f, J_c q̈ + J̇_c q̇ = 0, the wrench inequalities, |Γ| ≤ Γ_max
   // (J_c on the rows independent by construction: a point set's T J_c)
   const int nk = static_cast<int>(dyn_.constraint_jacobian().rows());
-  hard_.A.setZero(n_ + nk, nx);
-  hard_.A.block(6, n_, k_, k_).diagonal().setConstant(-1.0);
-  hard_.b.setZero(n_ + nk);
-  hard_.C.setZero(nw, nx);
-  hard_.C.rightCols(nc_) = s_.Cw;
-  hard_.l = s_.lw;
-  hard_.u = s_.uw;
-  hard_.lb.setConstant(nx, -kInf);
-  hard_.ub.setConstant(nx, kInf);
-  hard_.lb.segment(n_, k_) = -s_.tau_max;
-  hard_.ub.segment(n_, k_) = s_.tau_max;
-  soft_.clear();
-  for (size_t i = 0; i < s_.groups.size(); ++i) {
+  HardConstraints& hard = w.hard;
+  hard.A.setZero(n_ + nk, nx);
+  hard.A.block(6, n_, k_, k_).diagonal().setConstant(-1.0);
+  hard.b.setZero(n_ + nk);
+  hard.C.setZero(nw, nx);
+  hard.C.rightCols(nc) = s.Cw;
+  hard.l = s.lw;
+  hard.u = s.uw;
+  hard.lb.setConstant(nx, -kInf);
+  hard.ub.setConstant(nx, kInf);
+  hard.lb.segment(n_, k_) = -s.tau_max;
+  hard.ub.segment(n_, k_) = s.tau_max;
+  w.soft.clear();
+  for (size_t i = 0; i < s.groups.size(); ++i) {
     PriorityLevel lv;
-    lv.name = "L" + std::to_string(s_.priorities[i]);
+    lv.name = "L" + std::to_string(s.priorities[i]);
+    int rows = 0;
+    for (int task : s.groups[i]) rows += tasks_.dim(task);
+    lv.A.setZero(rows, nx);
+    lv.b.setZero(rows);
     lv.C.setZero(0, nx);
-    lv.weight = s_.level_weights[std::min(i, s_.level_weights.size() - 1)];
-    soft_.push_back(lv);
+    lv.weight = s.level_weights[std::min(i, s.level_weights.size() - 1)];
+    w.soft.push_back(lv);
   }
-  n_levels_ = static_cast<int>(soft_.size());
-  for (HqpFinal kind : s_.finals) {
+  w.n_levels = static_cast<int>(w.soft.size());
+  for (HqpFinal kind : s.finals) {
     PriorityLevel f;
     f.C.setZero(0, nx);
     f.weight = kFinalWeight;
@@ -78,9 +112,10 @@ void HqpTick::configure(const HqpSettings& settings) {
         break;
       case HqpFinal::kWrench:  // ‖W_c f‖²
         f.name = "wrench";
-        f.A.setZero(nc_, nx);
-        for (int j = 0; j < nc_; ++j) f.A(j, n_ + k_ + j) = s_.wrench_weights(j % s_.wrench_weights.size());
-        f.b.setZero(nc_);
+        f.A.setZero(nc, nx);
+        for (int j = 0; j < nc; ++j)
+          f.A(j, n_ + k_ + j) = s.wrench_weights(j % s.wrench_weights.size());
+        f.b.setZero(nc);
         break;
       case HqpFinal::kAccelerationEnergy:  // ‖Lᵀ q̈‖² = q̈ᵀ M q̈, filled every tick
       case HqpFinal::kZeroTorqueEnergy:    // ‖Lᵀ (q̈ − q̈₀)‖²
@@ -90,27 +125,35 @@ void HqpTick::configure(const HqpSettings& settings) {
         f.b.setZero(n_);
         break;
     }
-    soft_.push_back(f);
+    w.soft.push_back(f);
   }
-  K_.setZero(n_ + nc_, n_ + nc_);
-  rhs_.setZero(n_ + nc_);
+  w.K.setZero(n_ + nc, n_ + nc);
+  w.kkt = Eigen::CompleteOrthogonalDecomposition<Matrix>(n_ + nc, n_ + nc);
+  w.rhs.setZero(n_ + nc);
+  w.qdd0.setZero(n_ + nc);
+  w.wrench.setZero(nc);
+  llt_ = Eigen::LLT<Matrix>(n_);
   tau_.setZero(k_);
   qdd_.setZero(n_);
-  wrench_.setZero(nc_);
 }
 
 void HqpTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                                 const Eigen::Ref<const Vector>& uw) {
-  store_wrench_bounds("hqp", s_, lw, uw);
-  hard_.l = lw;
-  hard_.u = uw;
+  Workspace& w = work();
+  store_wrench_bounds("hqp", w.s, lw, uw);
+  w.hard.l = lw;
+  w.hard.u = uw;
 }
 
 bool HqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t,
                   LevelSolver& solver) {
   const auto t0 = Clock::now();
+  Workspace& w = work();
+  const HqpSettings& s = w.s;
+  const int nc = w.nc;
+  HardConstraints& hard = w.hard;
   evaluate(q, v, t);
-  result_ = HierarchyResult();
+  solved_ = false;
   double solver_seconds = 0.0;
   const auto done = [&](bool ok) {
     times_.build = seconds_since(t0) - times_.dynamics - solver_seconds;
@@ -121,26 +164,24 @@ bool HqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vect
   const Vector& h = dyn_.h();
   const Matrix& Jc = dyn_.contact_jacobian();
   const Vector& dJc = dyn_.contact_drift();
-  hard_.A.topLeftCorner(n_, n_) = M;
-  hard_.A.block(0, n_ + k_, n_, nc_) = -Jc.transpose();
-  hard_.b.head(n_) = -h;
-  hard_.A.bottomLeftCorner(hard_.A.rows() - n_, n_) = dyn_.constraint_jacobian();
-  hard_.b.tail(hard_.b.size() - n_) = -dyn_.constraint_drift();
+  hard.A.topLeftCorner(n_, n_) = M;
+  hard.A.block(0, n_ + k_, n_, nc) = -Jc.transpose();
+  hard.b.head(n_) = -h;
+  hard.A.bottomLeftCorner(hard.A.rows() - n_, n_) = dyn_.constraint_jacobian();
+  hard.b.tail(hard.b.size() - n_) = -dyn_.constraint_drift();
   const Matrix& J = tasks_.J();
-  for (int i = 0; i < n_levels_; ++i) {
-    PriorityLevel& lv = soft_[i];
-    int rows = 0;
-    for (int task : s_.groups[i]) rows += tasks_.dim(task);
-    lv.A.setZero(rows, n_ + k_ + nc_);
-    lv.b.resize(rows);
+  for (int i = 0; i < w.n_levels; ++i) {
+    PriorityLevel& lv = w.soft[i];
+    lv.A.setZero();
     int r = 0;
-    for (int task : s_.groups[i]) {
+    for (int task : s.groups[i]) {
       const int o = tasks_.offset(task), m = tasks_.dim(task);
-      if (s_.force_level[task]) {
+      if (s.force_level[task]) {
         // torque-level joint task on top of its joints' bias compensation: S_j (Γ − h_a) = ref
         const auto sel = J.block(o, 6, m, k_);
         lv.A.block(r, n_, m, k_) = sel;
-        lv.b.segment(r, m) = tasks_.acc_ref().segment(o, m) + sel * h.tail(k_);
+        lv.b.segment(r, m) = tasks_.acc_ref().segment(o, m);
+        lv.b.segment(r, m).noalias() += sel * h.tail(k_);
       } else {
         lv.A.block(r, 0, m, n_) = J.middleRows(o, m);
         lv.b.segment(r, m) = tasks_.acc_ref().segment(o, m) - tasks_.drift().segment(o, m);
@@ -149,41 +190,43 @@ bool HqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vect
     }
   }
   bool factored = false;
-  Eigen::LLT<Matrix> llt;
-  for (size_t j = 0; j < s_.finals.size(); ++j) {
-    const HqpFinal kind = s_.finals[j];
+  for (size_t j = 0; j < s.finals.size(); ++j) {
+    const HqpFinal kind = s.finals[j];
     if (kind != HqpFinal::kAccelerationEnergy && kind != HqpFinal::kZeroTorqueEnergy) continue;
     if (!factored) {
-      llt.compute(M);
-      if (llt.info() != Eigen::Success) return done(false);
+      llt_.compute(M);
+      if (llt_.info() != Eigen::Success) return done(false);
       factored = true;
     }
-    PriorityLevel& f = soft_[n_levels_ + j];
-    f.A.leftCols(n_) = llt.matrixU();
+    PriorityLevel& f = w.soft[w.n_levels + j];
+    f.A.leftCols(n_) = llt_.matrixU();
     if (kind == HqpFinal::kZeroTorqueEnergy) {
       // q̈₀: the rigid-contact motion under zero torque, [M −J_cᵀ; J_c 0] (q̈, f) = (−h, −J̇_c q̇)
       // (least squares: redundant contacts make the matrix singular yet consistent)
-      K_.topLeftCorner(n_, n_) = M;
-      K_.topRightCorner(n_, nc_) = -Jc.transpose();
-      K_.bottomLeftCorner(nc_, n_) = Jc;
-      rhs_.head(n_) = -h;
-      rhs_.tail(nc_) = -dJc;
-      const Vector qdd0 = K_.completeOrthogonalDecomposition().solve(rhs_).head(n_);
-      f.b.noalias() = llt.matrixU() * qdd0;
+      w.K.topLeftCorner(n_, n_) = M;
+      w.K.topRightCorner(n_, nc) = -Jc.transpose();
+      w.K.bottomLeftCorner(nc, n_) = Jc;
+      w.rhs.head(n_) = -h;
+      w.rhs.tail(nc) = -dJc;
+      w.kkt.compute(w.K);
+      w.qdd0 = w.kkt.solve(w.rhs);
+      f.b.noalias() = llt_.matrixU() * w.qdd0.head(n_);
     }
   }
   HierarchyOptions options;
-  options.strategy = s_.strategy;
-  options.prox = s_.prox;
-  options.accept_tol = s_.accept_tol;
+  options.strategy = s.strategy;
+  options.prox = s.prox;
+  options.accept_tol = s.accept_tol;
   options.handles = handles();
-  result_ = hierarchy_.solve(hard_, soft_, static_cast<int>(s_.finals.size()), options, solver);
+  const HierarchyResult& result =
+      hierarchy_.solve(hard, w.soft, static_cast<int>(s.finals.size()), options, solver);
   solver_seconds = hierarchy_.solver_seconds();
-  if (!result_.ok) return done(false);
-  const Vector& x = result_.x;
+  solved_ = true;
+  if (!result.ok) return done(false);
+  const Vector& x = result.x;
   qdd_ = x.head(n_);
   tau_ = x.segment(n_, k_);
-  wrench_ = x.tail(nc_);
+  w.wrench = x.tail(nc);
   return done(true);
 }
 

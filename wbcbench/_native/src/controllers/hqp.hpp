@@ -4,6 +4,9 @@
 // priority; final regularisation levels resolve what redundancy is left.
 #pragma once
 
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -33,6 +36,10 @@ class HqpTick : public Tick {
  public:
   HqpTick(const std::string& model, const std::vector<std::string>& task_frames,
           const std::vector<std::string>& contact_frames);
+  // once the tasks are added: the levels and hard constraints of the contact set the tick
+  // holds. Each contact set has a workspace of its own (its settings, constraints and levels),
+  // made by its first configure and kept: a change to a set configured before switches to it
+  // and allocates nothing.
   void configure(const HqpSettings& settings);
   // the whole tick at (q, v, t), its QPs solved by `solver`; false when it failed
   bool run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t,
@@ -42,21 +49,35 @@ class HqpTick : public Tick {
   void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                          const Eigen::Ref<const Vector>& uw) override;
 
-  const HierarchyResult& result() const { return result_; }
+  // the last run's hierarchy result (valid until the next run; empty when the run stopped
+  // before the hierarchy: a NaN in its data)
+  const HierarchyResult& result() const;
   const Hierarchy& hierarchy() const { return hierarchy_; }
   const Vector& tau() const { return tau_; }
   const Vector& qdd() const { return qdd_; }
-  const Vector& wrench() const { return wrench_; }
+  const Vector& wrench() const;
 
  private:
-  HqpSettings s_;
-  int n_ = 0, k_ = 0, nc_ = 0, n_levels_ = 0;
+  // what depends on the contact set
+  struct Workspace {
+    HqpSettings s;
+    int nc = 0, n_levels = 0;
+    HardConstraints hard;
+    std::vector<PriorityLevel> soft;  // the priorities, then the finals
+    Matrix K;  // the rigid-contact KKT matrix of the zero-torque motion
+    Eigen::CompleteOrthogonalDecomposition<Matrix> kkt;
+    Vector rhs, qdd0, wrench;
+  };
+  void contacts_switched(int set) override;
+  Workspace& work();
+
+  int n_ = 0, k_ = 0;
+  std::vector<std::unique_ptr<Workspace>> work_;  // by contact set number (null: not configured)
+  Workspace* w_ = nullptr;                        // the current set's
   Hierarchy hierarchy_;
-  HardConstraints hard_;
-  std::vector<PriorityLevel> soft_;  // the priorities, then the finals
-  HierarchyResult result_;
-  Matrix K_;  // the rigid-contact KKT matrix of the zero-torque motion
-  Vector tau_, qdd_, wrench_, rhs_;
+  bool solved_ = false;  // the last run solved the hierarchy
+  Eigen::LLT<Matrix> llt_;
+  Vector tau_, qdd_;
 };
 
 }  // namespace wbcbench

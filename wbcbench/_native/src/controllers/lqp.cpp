@@ -1,6 +1,7 @@
 #include "controllers/lqp.hpp"
 
 #include <Eigen/Cholesky>
+#include <memory>
 #include <stdexcept>
 
 namespace wbcbench {
@@ -11,126 +12,165 @@ bool dynamics_finite(const RobotDynamics& dyn, const TaskSet& tasks) {
          tasks.drift().allFinite() && tasks.acc_ref().allFinite();
 }
 
-void FullLqp::configure(const LexicographicSettings& settings, int n, int nc, int nk) {
-  s_ = settings;
-  n_ = n;
-  k_ = n - 6;
-  nc_ = nc;
-  nk_ = nk;
+void FullLqp::select(int set) {
+  const auto i = static_cast<size_t>(set);
+  w_ = i < work_.size() ? work_[i].get() : nullptr;
+}
+
+FullLqp::Workspace& FullLqp::work() {
+  if (w_ == nullptr)
+    throw std::logic_error("lqp: the contact set is not configured (configure first)");
+  return *w_;
+}
+
+const Vector& FullLqp::wrench() const {
+  static const Vector none;
+  return w_ == nullptr ? none : w_->wrench;
+}
+
+const HierarchyResult& FullLqp::result() const {
+  static const HierarchyResult none;
+  return solved_ ? hierarchy_.result() : none;
+}
+
+void FullLqp::configure(const LexicographicSettings& settings, int n, int nc, int nk, int set) {
+  const int k = n - 6;
   const int nx = n + nc;
-  const int nw = static_cast<int>(s_.Cw.rows());
-  if (s_.tau_max.size() != k_) throw std::invalid_argument("lqp: tau_max of wrong size");
-  if (s_.Cw.cols() != nc_ || s_.lw.size() != nw || s_.uw.size() != nw)
+  const int nw = static_cast<int>(settings.Cw.rows());
+  if (settings.tau_max.size() != k) throw std::invalid_argument("lqp: tau_max of wrong size");
+  if (settings.Cw.cols() != nc || settings.lw.size() != nw || settings.uw.size() != nw)
     throw std::invalid_argument("lqp: wrench constraints of wrong size");
-  if (s_.priorities.size() != s_.groups.size())
+  if (settings.priorities.size() != settings.groups.size())
     throw std::invalid_argument("lqp: one priority per task group");
-  if (s_.weights.empty()) throw std::invalid_argument("lqp: weights must not be empty");
+  if (settings.weights.empty()) throw std::invalid_argument("lqp: weights must not be empty");
+  n_ = n;
+  k_ = k;
+  const auto i = static_cast<size_t>(set);
+  if (work_.size() <= i) work_.resize(i + 1);
+  if (!work_[i]) work_[i] = std::make_unique<Workspace>();
+  Workspace& w = *(w_ = work_[i].get());
+  w.s = settings;
+  w.nc = nc;
+  w.nk = nk;
+  const LexicographicSettings& s = w.s;
   // priority 1 (hard): the floating-base rows and the torque limits, Γ = G x + γ
-  hard_.A.setZero(6, nx);
-  hard_.b.setZero(6);
-  hard_.C.setZero(k_, nx);
-  hard_.l.setZero(k_);
-  hard_.u.setZero(k_);
-  hard_.lb.resize(0);
-  hard_.ub.resize(0);
-  G_.setZero(k_, nx);
-  gamma_.setZero(k_);
-  levels_.clear();
+  HardConstraints& hard = w.hard;
+  hard.A.setZero(6, nx);
+  hard.b.setZero(6);
+  hard.C.setZero(k_, nx);
+  hard.l.setZero(k_);
+  hard.u.setZero(k_);
+  hard.lb.resize(0);
+  hard.ub.resize(0);
+  w.G.setZero(k_, nx);
+  w.gamma.setZero(k_);
+  w.levels.clear();
   // priority 2: stationary contacts, the wrench inequalities and the q̈ limits
   PriorityLevel contacts;
   contacts.name = prefix_ + "contacts";
-  contacts.A.setZero(nk_, nx);
-  contacts.b.setZero(nk_);
+  contacts.A.setZero(nk, nx);
+  contacts.b.setZero(nk);
   contacts.C.setZero(nw + k_, nx);
-  contacts.C.block(0, n_, nw, nc_) = s_.Cw;
+  contacts.C.block(0, n_, nw, nc) = s.Cw;
   contacts.C.block(nw, 6, k_, k_).setIdentity();
   contacts.l.resize(nw + k_);
   contacts.u.resize(nw + k_);
-  contacts.l << s_.lw, Vector::Constant(k_, -s_.qdd_limit);
-  contacts.u << s_.uw, Vector::Constant(k_, s_.qdd_limit);
+  contacts.l << s.lw, Vector::Constant(k_, -s.qdd_limit);
+  contacts.u << s.uw, Vector::Constant(k_, s.qdd_limit);
   contacts.hard_if_feasible = true;
-  levels_.push_back(contacts);
-  for (size_t p = 0; p < s_.groups.size(); ++p) {
+  w.levels.push_back(contacts);
+  for (size_t p = 0; p < s.groups.size(); ++p) {
     PriorityLevel lv;
-    lv.name = prefix_ + "p" + std::to_string(s_.priorities[p]);
+    lv.name = prefix_ + "p" + std::to_string(s.priorities[p]);
+    lv.A.setZero(0, nx);  // (its rows are the tasks': sized by the first solve)
     lv.C.setZero(0, nx);
-    levels_.push_back(lv);
+    w.levels.push_back(lv);
   }
-  for (size_t i = 0; i < levels_.size(); ++i)
-    levels_[i].weight = s_.weights[std::min(i, s_.weights.size() - 1)];
+  for (size_t j = 0; j < w.levels.size(); ++j)
+    w.levels[j].weight = s.weights[std::min(j, s.weights.size() - 1)];
   // the acceleration energy ‖Lᵀ q̈‖² + reg ‖f‖² = q̈ᵀ M q̈ + reg ‖f‖² (eq. 27), merged into the
   // last level's cost
   PriorityLevel energy;
   energy.name = prefix_ + "energy";
   energy.A.setZero(nx, nx);
-  energy.A.bottomRightCorner(nc_, nc_).diagonal().setConstant(std::sqrt(s_.wrench_regularization));
+  energy.A.bottomRightCorner(nc, nc).diagonal().setConstant(std::sqrt(s.wrench_regularization));
   energy.b.setZero(nx);
   energy.C.setZero(0, nx);
-  energy.weight = s_.final_weight;
-  levels_.push_back(energy);
+  energy.weight = s.final_weight;
+  w.levels.push_back(energy);
+  w.wrench.setZero(nc);
+  llt_ = Eigen::LLT<Matrix>(n_);
   tau_.setZero(k_);
   qdd_.setZero(n_);
-  wrench_.setZero(nc_);
 }
 
 void FullLqp::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                                 const Eigen::Ref<const Vector>& uw) {
-  store_wrench_bounds("lqp", s_, lw, uw);
+  Workspace& w = work();
+  store_wrench_bounds("lqp", w.s, lw, uw);
   const auto nw = lw.size();
-  levels_[0].l.head(nw) = lw;
-  levels_[0].u.head(nw) = uw;
+  w.levels[0].l.head(nw) = lw;
+  w.levels[0].u.head(nw) = uw;
 }
 
 bool FullLqp::solve(const RobotDynamics& dyn, const TaskSet& tasks, LevelSolver& solver) {
+  Workspace& w = work();
+  const LexicographicSettings& s = w.s;
+  const int nc = w.nc;
+  HardConstraints& hard = w.hard;
   const Matrix& M = dyn.M();
   const Vector& h = dyn.h();
   const Matrix& Jc = dyn.contact_jacobian();
-  result_ = HierarchyResult();
+  solved_ = false;
   solver_seconds_ = 0.0;
   if (!dynamics_finite(dyn, tasks)) return false;
-  G_.leftCols(n_) = M.bottomRows(k_);
-  G_.rightCols(nc_) = -Jc.rightCols(k_).transpose();
-  gamma_ = h.tail(k_);
-  hard_.A.leftCols(n_) = M.topRows(6);
-  hard_.A.rightCols(nc_) = -Jc.leftCols(6).transpose();
-  hard_.b = -h.head(6);
-  hard_.C = G_;
-  hard_.l = -s_.tau_max - gamma_;
-  hard_.u = s_.tau_max - gamma_;
-  PriorityLevel& contacts = levels_[0];
+  w.G.leftCols(n_) = M.bottomRows(k_);
+  w.G.rightCols(nc) = -Jc.rightCols(k_).transpose();
+  w.gamma = h.tail(k_);
+  hard.A.leftCols(n_) = M.topRows(6);
+  hard.A.rightCols(nc) = -Jc.leftCols(6).transpose();
+  hard.b = -h.head(6);
+  hard.C = w.G;
+  hard.l = -s.tau_max - w.gamma;
+  hard.u = s.tau_max - w.gamma;
+  PriorityLevel& contacts = w.levels[0];
   contacts.A.leftCols(n_) = dyn.constraint_jacobian();
   contacts.b = -dyn.constraint_drift();
-  for (size_t p = 0; p < s_.groups.size(); ++p) {
-    PriorityLevel& lv = levels_[p + 1];
+  for (size_t p = 0; p < s.groups.size(); ++p) {
+    PriorityLevel& lv = w.levels[p + 1];
     int rows = 0;
-    for (int task : s_.groups[p]) rows += tasks.dim(task);
-    lv.A.setZero(rows, n_ + nc_);
-    lv.b.resize(rows);
+    for (int task : s.groups[p]) rows += tasks.dim(task);
+    if (lv.A.rows() != rows) {  // (sized by the first solve: configure has no tasks)
+      lv.A.setZero(rows, n_ + nc);
+      lv.b.setZero(rows);
+    }
     int r = 0;
-    for (int task : s_.groups[p]) {
+    for (int task : s.groups[p]) {
       const int o = tasks.offset(task), m = tasks.dim(task);
       lv.A.block(r, 0, m, n_) = tasks.J().middleRows(o, m);
       lv.b.segment(r, m) = tasks.acc_ref().segment(o, m) - tasks.drift().segment(o, m);
       r += m;
     }
   }
-  Eigen::LLT<Matrix> llt(M);
-  if (llt.info() != Eigen::Success) return false;
-  levels_.back().A.topLeftCorner(n_, n_) = llt.matrixU();
+  llt_.compute(M);
+  if (llt_.info() != Eigen::Success) return false;
+  w.levels.back().A.topLeftCorner(n_, n_) = llt_.matrixU();
   HierarchyOptions options;
-  options.strategy = s_.strategy;
-  options.prox = s_.prox;
-  options.accept_tol = s_.accept_tol;
+  options.strategy = s.strategy;
+  options.prox = s.prox;
+  options.accept_tol = s.accept_tol;
   options.merge_finals = true;
   options.slack_free_first = true;
   options.handles = handles();
-  result_ = hierarchy_.solve(hard_, levels_, 1, options, solver);
+  const HierarchyResult& result = hierarchy_.solve(hard, w.levels, 1, options, solver);
   solver_seconds_ = hierarchy_.solver_seconds();
-  if (!result_.ok) return false;
-  const Vector& x = result_.x;
+  solved_ = true;
+  if (!result.ok) return false;
+  const Vector& x = result.x;
   qdd_ = x.head(n_);
-  wrench_ = x.tail(nc_);
-  tau_.noalias() = G_ * x + gamma_;
+  w.wrench = x.tail(nc);
+  tau_.noalias() = w.G * x;
+  tau_ += w.gamma;
   return true;
 }
 
@@ -142,7 +182,7 @@ LqpTick::LqpTick(const std::string& model, const std::vector<std::string>& task_
 
 void LqpTick::configure(const LexicographicSettings& settings) {
   lqp_.configure(settings, nv(), static_cast<int>(dyn_.contact_jacobian().rows()),
-                 static_cast<int>(dyn_.constraint_jacobian().rows()));
+                 static_cast<int>(dyn_.constraint_jacobian().rows()), set_);
 }
 
 bool LqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t,

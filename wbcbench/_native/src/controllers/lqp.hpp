@@ -3,6 +3,8 @@
 // eliminated through the actuated rows of the dynamics, Γ = G x + γ.
 #pragma once
 
+#include <Eigen/Cholesky>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -28,38 +30,55 @@ struct LexicographicSettings {
 };
 
 // The full-model LQP of one tick's dynamics and tasks: its levels, its hierarchy, the answer.
+// Each contact set has a workspace of its own (its settings, constraints and levels), made by
+// its first configure and kept: a return to a set configured before (select) allocates nothing.
 class FullLqp {
  public:
   // pool: the id the hierarchy's solves carry; prefix: put before every level name
   explicit FullLqp(int pool = 0, std::string prefix = "") : hierarchy_(pool), prefix_(prefix) {}
-  // nc: the contact rows (force variables); nk: the independent ones (constraint rows)
-  void configure(const LexicographicSettings& settings, int n, int nc, int nk);
+  // nc: the contact rows (force variables); nk: the independent ones (constraint rows); set:
+  // the number of the contact set these are for (its workspace is made or re-made)
+  void configure(const LexicographicSettings& settings, int n, int nc, int nk, int set = 0);
+  // the workspace of contact set `set` (none until that set is configured)
+  void select(int set);
   // the hierarchy at this tick's dynamics and tasks; false when a level failed (failed_level)
   // or the data hold a NaN (failed_level empty)
   bool solve(const RobotDynamics& dyn, const TaskSet& tasks, LevelSolver& solver);
-  int handles() const { return 2 * static_cast<int>(levels_.size()); }
+  int handles() const { return w_ == nullptr ? 0 : 2 * static_cast<int>(w_->levels.size()); }
   // the wrench rows' bounds of this tick (a contact schedule's ramps), into the contacts level
   void set_wrench_bounds(const Eigen::Ref<const Vector>& lw, const Eigen::Ref<const Vector>& uw);
 
-  const HierarchyResult& result() const { return result_; }
+  // the last solve's result (valid until the next solve; empty when it stopped before the
+  // hierarchy: a NaN in its data)
+  const HierarchyResult& result() const;
   // seconds inside the solver calls of the last solve()
   double solver_seconds() const { return solver_seconds_; }
   const Hierarchy& hierarchy() const { return hierarchy_; }
   const Vector& tau() const { return tau_; }
   const Vector& qdd() const { return qdd_; }
-  const Vector& wrench() const { return wrench_; }
+  const Vector& wrench() const;
 
  private:
-  LexicographicSettings s_;
-  int n_ = 0, k_ = 0, nc_ = 0, nk_ = 0;
+  // what depends on the contact set
+  struct Workspace {
+    LexicographicSettings s;
+    int nc = 0, nk = 0;
+    HardConstraints hard;
+    std::vector<PriorityLevel> levels;  // contacts, the task priorities, then the energy
+    Matrix G;
+    Vector gamma, wrench;
+  };
+  Workspace& work();
+
+  int n_ = 0, k_ = 0;
+  std::vector<std::unique_ptr<Workspace>> work_;  // by contact set number (null: not configured)
+  Workspace* w_ = nullptr;                        // the current set's
   Hierarchy hierarchy_;
+  bool solved_ = false;  // the last solve reached the hierarchy
   std::string prefix_;
-  HardConstraints hard_;
-  std::vector<PriorityLevel> levels_;  // contacts, the task priorities, then the energy
-  HierarchyResult result_;
   double solver_seconds_ = 0.0;
-  Matrix G_;
-  Vector gamma_, tau_, qdd_, wrench_;
+  Eigen::LLT<Matrix> llt_;
+  Vector tau_, qdd_;
 };
 
 class LqpTick : public Tick {
@@ -77,6 +96,7 @@ class LqpTick : public Tick {
   }
 
  private:
+  void contacts_switched(int set) override { lqp_.select(set); }
   FullLqp lqp_;
 };
 

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/QR>
 #include <memory>
 #include <string>
 #include <vector>
@@ -83,6 +84,30 @@ class LevelSolver {
                      const QpBuffers& qp, Vector& x, Vector& z, bool& has_z) = 0;
 };
 
+// Orthonormal bases of the row space and null space of E (p, n) and the minimum-norm solution
+// of E x = b, from a column-pivoted Householder QR of Eᵀ held with its workspace: factor()
+// computes in place, so that repeated calls of the same sizes allocate nothing.
+class Bases {
+ public:
+  // Eᵀ P = Q R of rank r (|R_ii| > tol · max(1, |R_00|)); the row-space basis R = Q₁ᵀ (r, n)
+  // (as its transpose Q₁) and the null-space basis Z = Q₂ (n, n − r) formed where asked for
+  void factor(const Eigen::Ref<const Matrix>& E, bool want_R, bool want_Z,
+              double tol = 1e-10);
+  // after factor(E, ...): the minimum-norm solution of E x = b into x
+  void min_norm(const Eigen::Ref<const Matrix>& E, const Eigen::Ref<const Vector>& b, Vector& x);
+  int rank() const { return rank_; }
+  const Matrix& Q1() const { return Q1_; }  // Rᵀ (n, r)
+  const Matrix& Z() const { return Z_; }
+
+ private:
+  Eigen::ColPivHouseholderQR<Matrix> qr_;
+  Eigen::CompleteOrthogonalDecomposition<Matrix> cod_;  // (a rank-deficient E only)
+  Matrix Q1_, Z_;
+  Vector work_, rhs_;
+  int rank_ = 0;
+  bool empty_ = true;  // E had no rows (or no columns)
+};
+
 class Hierarchy {
  public:
   // the finals merged into a level's cost (pointers into the caller's levels: no copies)
@@ -91,64 +116,125 @@ class Hierarchy {
   explicit Hierarchy(int pool = 0) : pool_(pool) {}
   Hierarchy(const Hierarchy&) = delete;  // owns the buffers the Python views read
   Hierarchy& operator=(const Hierarchy&) = delete;
-  // soft: the levels, then the finals (as levels with no inequalities): n_finals of them
-  HierarchyResult solve(const HardConstraints& hard, const std::vector<PriorityLevel>& soft,
-                        int n_finals, const HierarchyOptions& options, LevelSolver& solver);
+  // soft: the levels, then the finals (as levels with no inequalities): n_finals of them.
+  // The result is this object's, valid until the next solve. What a solve needs is kept per
+  // shape of the problem (the sizes of the hard constraints and of every level): a solve of a
+  // shape solved before, and whose level QPs keep their sizes, allocates nothing.
+  const HierarchyResult& solve(const HardConstraints& hard,
+                               const std::vector<PriorityLevel>& soft, int n_finals,
+                               const HierarchyOptions& options, LevelSolver& solver);
+  // the result of the last solve (empty before the first)
+  const HierarchyResult& result() const;
 
+  // the QP slots, one per (handle, kind, sizes) assembled so far, numbered in order
   int n_slots() const { return static_cast<int>(slots_.size()); }
-  const QpBuffers& slot(int i) const { return *slots_.at(i); }
+  const QpBuffers& slot(int i) const { return slots_.at(i)->qp; }
   // seconds spent inside LevelSolver::solve during the last solve() (the rest is assembly)
   double solver_seconds() const { return solver_seconds_; }
 
  private:
+  // one QP's buffers and the backend's answer to it (sized with it)
+  struct Slot {
+    int handle = 0, kind = 0, n = 0, n_eq = 0, n_in = 0;
+    bool box = false;
+    QpBuffers qp;
+    Vector x, z;  // the QP's primal solution and the duals of its C rows
+  };
   struct Answer {
     bool solved = false;    // a QP was solved (false: nothing to solve, x is given)
     bool success = false;   // the backend solved it
     bool accepted = false;  // x is the level's optimum (a slack-free try may be refused)
-    Vector x;               // the level's optimum over the hierarchy's variable
-    Vector qp_x, z;         // the QP's primal solution and the duals of its C rows
+    const Vector* qp_x = nullptr;  // the slot's primal solution and duals of its C rows
+    const Vector* z = nullptr;
     bool has_z = false;
     std::string refusal;    // why a reported solution was refused (see check)
   };
+  // an inequality held for the levels below: the level's rows and its bounds
+  struct Held {
+    const Matrix* C = nullptr;  // the caller's level (it outlives the solve)
+    Vector lo, hi;
+  };
+  // what one level needs, sized by the first solve of a shape and kept
+  struct LevelWork {
+    Matrix E, EQ, Ep;  // the held rows, their part the hard equalities fix, the rest
+    Matrix AZ, Z;      // A Z of the level and the null space left after it
+    // a level held hard inside the next one's QP: the null space Z_l left after it, and
+    // A Z_l of the next level (kind 1's QP)
+    Matrix pAZ, pZ;
+    Vector e, x_l, y, rhs;
+    Bases bases, pbases;
+    // the proximal retry's projector
+    Matrix stack, AZf, N, ZN, P;
+    Bases fbases, nbases;
+  };
+  // what a solve of one shape needs (see solve)
+  struct Workspace {
+    std::vector<int> shape;
+    std::vector<LevelWork> levels;
+    Bases hard;  // of the hard equalities
+    HierarchyResult result;
+    int n_results = 0;  // entries of result.levels filled
+    std::vector<Held> held;
+    int n_held = 0;
+    Vector x, x_p, a_x;  // the optimum so far, the particular solution, a level's answer
+  };
+  // the workspace of the shape of (hard, soft, options), made when new
+  Workspace& workspace(const HardConstraints& hard, const std::vector<PriorityLevel>& soft,
+                       const HierarchyOptions& options);
   // the slot a QP of handle `handle` is assembled into: kind 0 the level's own QP, 1 the QP of
-  // a level held hard inside the next one's (same handle, another structure)
+  // a level held hard inside the next one's (same handle, another structure); one per size
   QpBuffers& prepare(int handle, int kind, int n, int n_eq, int n_in, bool box);
-  Answer call(LevelSolver& solver, const std::string& level);
+  void call(LevelSolver& solver, const std::string& level, Answer& a);
   // the largest relative violation x leaves on the hard constraints and the held inequalities
-  double held_violation(const HardConstraints& hard, const Vector& x) const;
+  double held_violation(const HardConstraints& hard, const Eigen::Ref<const Vector>& x);
   // whether x, the answer of a QP whose held bounds were widened by relax, meets them to
   // accept_tol_ relative to the problem's scale; if not, a is marked failed with the reason
   // (see _checked)
-  bool check(const HardConstraints& hard, const Vector& x, double relax, Answer& a) const;
+  bool check(const HardConstraints& hard, const Eigen::Ref<const Vector>& x, double relax,
+             Answer& a);
 
-  HierarchyResult solve_weighted(const HardConstraints& hard,
-                                 const std::vector<PriorityLevel>& soft, LevelSolver& solver);
+  void solve_weighted(const HardConstraints& hard, const std::vector<PriorityLevel>& soft,
+                      LevelSolver& solver);
   // soft[0, n_levels) are solved in turn; the rest (finals) are merged into the last one's cost
-  HierarchyResult solve_sequential(const HardConstraints& hard,
-                                   const std::vector<PriorityLevel>& soft, int n_levels,
-                                   int n_handles, bool nullspace, double prox,
-                                   bool slack_free_first, LevelSolver& solver);
-  // the cascade's level QP over z = (x, w, v) (see _cascade_level)
-  Answer cascade_level(const HardConstraints& hard, const PriorityLevel& lv, const Matrix& E,
-                       const Vector& e, int handle, double relax, const Vector& center,
-                       double prox, const Merged& merged, bool hard_own,
-                       LevelSolver& solver);
+  void solve_sequential(const HardConstraints& hard, const std::vector<PriorityLevel>& soft,
+                        int n_levels, int n_handles, bool nullspace, double prox,
+                        bool slack_free_first, LevelSolver& solver);
+  // the cascade's level QP over z = (x, w, v) (see _cascade_level); the held equalities
+  // E x = e given as Eᵀ (n, p)
+  void cascade_level(const HardConstraints& hard, const PriorityLevel& lv, const Matrix& Et,
+                     const Vector& e, LevelWork& w, int handle, double relax,
+                     const Vector& center, double prox, const Merged& merged, bool hard_own,
+                     LevelSolver& solver, Answer& a);
   // the null-space method's level QP over (y, v), x = x_p + Z y (see _nullspace_level)
-  Answer nullspace_level(const HardConstraints& hard, const PriorityLevel& lv, const Vector& x_p,
-                         const Matrix& Z, int handle, int kind, double relax,
-                         double prox, const Merged& merged, bool hard_own,
-                         LevelSolver& solver);
+  void nullspace_level(const HardConstraints& hard, const PriorityLevel& lv, const Vector& x_p,
+                       const Matrix& Z, LevelWork& w, int handle, int kind, double relax,
+                       double prox, const Merged& merged, bool hard_own, LevelSolver& solver,
+                       Answer& a);
+  // the finals merged into a level's cost: H += w FᵀF, g −= w Fᵀ f over x (Z null), or over
+  // y with x = x_p + Z y
+  void add_merged(Eigen::Ref<RowMatrix> H, Eigen::Ref<Vector> g, const Merged& merged,
+                  const Matrix* Z, const Vector* x_p);
+  // the slacks of level lv at x into the result's next entry
+  void add_result(const PriorityLevel& lv, const Vector& x);
+  // hold a level's inequalities for the levels below: rows C, bounds [lo, hi] (+ shift)
+  void hold(const Matrix& C, const Vector& lo, const Vector& hi, const Vector* shift);
 
   int pool_;
-  std::vector<std::unique_ptr<QpBuffers>> slots_;
-  int handle_ = -1, slot_ = -1;  // what prepare() filled last
-  bool reshaped_ = false;        // whether prepare() re-made it
+  std::vector<std::unique_ptr<Slot>> slots_;
+  Slot* current_ = nullptr;      // what prepare() filled last
+  int slot_ = -1;
+  bool reshaped_ = false;        // whether prepare() made it
   double solver_seconds_ = 0.0;
   double accept_tol_ = 1e-5;  // of the solve in progress (HierarchyOptions::accept_tol)
-  // the inequalities the levels solved so far pass on, their slacks fixed (prev_C, prev_lo,
-  // prev_hi of the reference)
-  std::vector<Matrix> prev_C_;
-  std::vector<Vector> prev_lo_, prev_hi_;
+  std::vector<std::unique_ptr<Workspace>> spaces_;
+  Workspace* ws_ = nullptr;  // the solve's
+  Answer answer_;
+  Merged merged_;
+  const Merged none_;
+  std::vector<const Matrix*> held_rows_;  // equalities held so far, the hard ones excluded
+  std::vector<Eigen::Index> box_rows_;
+  Matrix fz_;  // F Z of a merged final (grown, never shrunk)
+  Vector cx_;  // C x of one block of rows (grown, never shrunk)
 };
 
 // Orthonormal bases (R (rank, n), Z (n, n − rank)) of the row space and null space of E (p, n),
