@@ -232,6 +232,7 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
     compared: list[tuple[tuple[float, float], float]] = []
     slack_diffs: list[tuple[str, float]] = []
     spread_slacks, mismatched, both_failed, fell_back = 0.0, 0, 0, 0
+    budget_hits = 0
     for _ in range(STATES):
         q, v = grounded_state(robot, keyframe, frames, rng, q_noise=0.05, v_noise=0.2)
         t = float(rng.uniform(*window))
@@ -240,6 +241,17 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
             b = python.step(RobotState(robot, q, v), t)
         assert {"dynamics", "build", "solve", "crossing", "total"} <= set(a.timings)
         if a.ok != b.ok:
+            failed = a if not a.ok else b
+            if backend not in ACTIVE_SET and (
+                "max_iter" in failed.message or "inaccurate" in failed.message
+            ):
+                # an iterative backend's budget, not a verdict on the QP: on data equal to
+                # rounding one impl converges just inside its iterations or accuracy and the
+                # other does not (measured with OSQP in double support, native solved: the
+                # Python impl at max_iter on LQP 1's preview, or "solved inaccurate" on LQP 2's
+                # p2, on 1 or 2 of the 4 states depending on what the process ran before)
+                budget_hits += 1
+                continue
             # a backend's verdict on a level QP whose feasible set is thinner than the band
             # (see tests.test_native_hierarchy)
             level, margins = failed_level_margins(a, b, nat.native_problems(), recorder.problems)
@@ -309,6 +321,7 @@ def check_case(case: str, solver: str, config: dict[str, Any]) -> None:
                 spread[branch(b)] = max(spread.get(branch(b), 0.0), diff)
             pairs = zip((a.tau, a.qdd, a.wrench), (b.tau, b.qdd, b.wrench), strict=True)
             compared.append((branch(b), max(relative(x, y) for x, y in pairs)))
+    assert budget_hits < STATES, "every state ended on an iterative backend's budget"
     if backend == "quadprog" and exact:  # the reference backend: agreement on nearly every state
         assert len(compared) + fell_back + both_failed >= STATES - 1, (len(compared), both_failed)
     tol = max(3e-6, 10 * spread_slacks) if exact else 1e-3
