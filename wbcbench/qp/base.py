@@ -17,7 +17,7 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Hashable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -195,9 +195,9 @@ class QPSolver(ABC):
                 solution.
             origin: the QP's variables are coordinates made afresh for this call (a null-space
                 level's y, x = x_p + Z y, x_p the levels above's answer and Z a basis of this
-                tick), so the previous solution's primal part means nothing in them: ``warm``
-                and ``hot`` start at x = 0 (the levels above's answer) with the previous
-                duals (its rows keep their meaning). ``cold`` and an explicit ``x0`` ignore it.
+                tick), so the previous solution means nothing in them: ``warm`` and ``hot``
+                start at x = 0 (the levels above's answer) with zero duals, a hot backend
+                keeping its native object. ``cold`` and an explicit ``x0`` ignore it.
             raise_on_failure: raise :class:`SolverError` (carrying the problem) instead of
                 returning a non-``solved`` Solution.
             lean: the timed path of native ticks: no validation of the problem (its builder
@@ -269,14 +269,16 @@ class QPSolver(ABC):
         )
 
     def _origin_guess(self, problem: Problem, update: bool = False) -> Guess | None:
-        """x = 0 with the previous solution's duals (see ``origin`` in :meth:`solve`); without
-        a previous solution of this shape, a new native object starts from the backend's own
-        initial guess (None), a kept one (``update``) from x = 0 with its own duals."""
-        prev = self._guess(problem, None)
-        x = np.zeros(problem.n)
-        if prev is None:
-            return Guess(x=x) if update else None
-        return replace(prev, x=x)
+        """x = 0 and zero duals (see ``origin`` in :meth:`solve`), or None (the backend's own
+        initial guess) for a new native object when no solution came before."""
+        if not update and self.previous is None:
+            return None
+        return Guess(
+            x=np.zeros(problem.n),
+            y=np.zeros(problem.n_eq),
+            z=np.zeros(problem.n_in),
+            z_box=np.zeros(problem.n) if problem.has_box else None,
+        )
 
     def _solve_hot(self, problem: Problem, x0: Array | None, at_origin: bool = False) -> Solution:
         key = self._native_signature(problem)

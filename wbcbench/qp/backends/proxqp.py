@@ -6,8 +6,8 @@ Native API: ``proxsuite.proxqp.dense.QP(n, n_eq, n_in, box_constraints)``, ``ini
 the object is kept, ``update`` receives only the changed data and the solve starts from the
 previous result (``WARM_START_WITH_PREVIOUS_RESULT``), or from a given guess (an explicit
 ``x0``, or the origin of a null-space level's coordinates: ``origin`` in
-:meth:`~wbcbench.qp.QPSolver.solve`) with the previous duals; the preconditioner is not recomputed
-on update (ProxQP's default). Internal time: ``results.info.solve_time`` when
+:meth:`~wbcbench.qp.QPSolver.solve`); the preconditioner is not recomputed on update
+(ProxQP's default). Internal time: ``results.info.solve_time`` when
 ``compute_timings`` is on (this backend turns it on unless told otherwise); it covers the solve
 call, not ``init``/``update``.
 
