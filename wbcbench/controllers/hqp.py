@@ -164,6 +164,7 @@ class Hqp(NativeController):
             [self.solvers],
             self.ctx.keep_problems,
             self.config.solver_calls,
+            origin=self.config.strategy == "nullspace",
         )
 
     def native_region(

@@ -237,6 +237,7 @@ class Lqp(NativeController):
             [self.pool.get(max(tick.handles, 2 * levels))],
             self.ctx.keep_problems,
             self.config.solver_calls,
+            origin=self.config.strategy == "nullspace",
         )
 
     def native_diagnostics(

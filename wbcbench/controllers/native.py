@@ -264,6 +264,10 @@ class LevelSolve:
     (:meth:`~wbcbench.qp.QPSolver.native_solver`) are solved in C++ instead (``natives``): the
     tick never comes back here for them, and their records reach the timer after the tick
     (with ``keep``, copies of their QPs too).
+
+    ``origin``: the hierarchy's QPs are null-space levels, over coordinates made afresh every
+    tick; warm and hot handles start them at the origin (``origin`` in
+    :meth:`~wbcbench.qp.QPSolver.solve`), as the Python hierarchy does.
     """
 
     def __init__(
@@ -272,10 +276,12 @@ class LevelSolve:
         pools: list[list[Any]],
         keep: bool = False,
         solver_calls: str = "python",
+        origin: bool = False,
     ) -> None:
         self.slots = slots  # (pool, slot) -> the native QpBuffers
         self.pools = pools
         self.keep = keep
+        self.origin = origin
         self.views: dict[tuple[int, int], Problem] = {}
         self.timer: SolveTimes | None = None
         self.failed: Any = None
@@ -346,7 +352,7 @@ class LevelSolve:
         if problem is None or reshaped:
             problem = qp_view(self.slots(pool, slot), level)
             self.views[(pool, slot)] = problem
-        sol = self.pools[pool][handle].solve(problem, lean=True)
+        sol = self.pools[pool][handle].solve(problem, lean=True, origin=self.origin)
         if self.timer is not None:
             self.timer.add_solution(sol, level)
         if self.keep:

@@ -493,7 +493,13 @@ class RcLqp(NativeController):
             pool.get(max(tick.handles(i), most))
             for i, (pool, most) in enumerate(zip(self.pools, bound, strict=True))
         ]
-        return LevelSolve(tick.slot, handles, self.ctx.keep_problems, self.config.solver_calls)
+        return LevelSolve(
+            tick.slot,
+            handles,
+            self.ctx.keep_problems,
+            self.config.solver_calls,
+            origin=self.config.strategy == "nullspace",
+        )
 
     def native_region(
         self, q: np.ndarray, v: np.ndarray, t: float, timer: NativeTimer

@@ -184,6 +184,7 @@ class QPSolver(ABC):
         x0: Array | None = None,
         raise_on_failure: bool = False,
         lean: bool = False,
+        origin: bool = False,
     ) -> Solution:
         """Solve ``problem``.
 
@@ -192,6 +193,11 @@ class QPSolver(ABC):
             x0: explicit primal initial guess ``(n,)``; passed to the solver in any mode when
                 its API accepts one. Without it, ``warm`` and ``hot`` reuse the previous
                 solution.
+            origin: the QP's variables are coordinates made afresh for this call (a null-space
+                level's y, x = x_p + Z y, x_p the levels above's answer and Z a basis of this
+                tick), so the previous solution means nothing in them: ``warm`` and ``hot``
+                start at x = 0 (the levels above's answer) with zero duals, a hot backend
+                keeping its native object. ``cold`` and an explicit ``x0`` ignore it.
             raise_on_failure: raise :class:`SolverError` (carrying the problem) instead of
                 returning a non-``solved`` Solution.
             lean: the timed path of native ticks: no validation of the problem (its builder
@@ -207,10 +213,12 @@ class QPSolver(ABC):
         try:
             if not lean:
                 problem.validate()
+            at_origin = origin and x0 is None and self.mode != "cold"
             if self.mode == "hot":
-                sol = self._solve_hot(problem, x0)
+                sol = self._solve_hot(problem, x0, at_origin)
             else:
-                sol = self._solve_fresh(problem, self._guess(problem, x0), keep=False)
+                guess = self._origin_guess(problem) if at_origin else self._guess(problem, x0)
+                sol = self._solve_fresh(problem, guess, keep=False)
         except Exception as exc:  # a failed row, never a crashed sweep (hot: rebuilt below)
             sol = Solution(status=SolutionStatus.FAILED, message=f"{type(exc).__name__}: {exc}")
         if sol.success and (sol.x is None or not np.isfinite(sol.x).all()):
@@ -260,17 +268,34 @@ class QPSolver(ABC):
             z_box=prev.z_box if prev.z_box is not None and problem.has_box else None,
         )
 
-    def _solve_hot(self, problem: Problem, x0: Array | None) -> Solution:
+    def _origin_guess(self, problem: Problem, update: bool = False) -> Guess | None:
+        """x = 0 and zero duals (see ``origin`` in :meth:`solve`), or None (the backend's own
+        initial guess) for a new native object when no solution came before."""
+        if not update and self.previous is None:
+            return None
+        return Guess(
+            x=np.zeros(problem.n),
+            y=np.zeros(problem.n_eq),
+            z=np.zeros(problem.n_in),
+            z_box=np.zeros(problem.n) if problem.has_box else None,
+        )
+
+    def _solve_hot(self, problem: Problem, x0: Array | None, at_origin: bool = False) -> Solution:
         key = self._native_signature(problem)
         snapshot = self._snapshot(problem)
         if self._native is not None and key == self._native_key and self._can_update(problem):
-            # The native object already holds the previous iterate: pass only an explicit x0.
+            # The native object already holds the previous iterate: pass only an explicit x0
+            # or the origin.
             changed = frozenset(k for k in DATA_FIELDS if snapshot[k] != self._last.get(k))
-            guess = None if x0 is None else self._guess(problem, x0)
+            if at_origin:
+                guess: Guess | None = self._origin_guess(problem, update=True)
+            else:
+                guess = None if x0 is None else self._guess(problem, x0)
             sol = self._solve_update(problem, guess, changed)
         else:
             self._native = None
-            sol = self._solve_fresh(problem, self._guess(problem, x0), keep=True)
+            guess = self._origin_guess(problem) if at_origin else self._guess(problem, x0)
+            sol = self._solve_fresh(problem, guess, keep=True)
             sol.rebuilt = True
             self.builds += 1
             self._native_key = key

@@ -886,7 +886,8 @@ def _nullspace_level(
         np.concatenate(hi) if hi else np.zeros(0),
         name=lv.name,
     )
-    sol = solver.solve(problem)
+    # y = 0 is the levels above's answer; the previous tick's y is in another basis
+    sol = solver.solve(problem, origin=True)
     x = None if sol.x is None else x_p + Z @ sol.x[:d]
     sol, x = _checked(sol, x, hard, prev_C, prev_lo, prev_hi, relax, solver)
     if not sol.success or x is None:

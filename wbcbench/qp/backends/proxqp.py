@@ -4,8 +4,10 @@ Native API: ``proxsuite.proxqp.dense.QP(n, n_eq, n_in, box_constraints)``, ``ini
 ``update``, ``solve``. Warm start: ``InitialGuess.WARM_START`` with ``solve(x, y, z)``
 (without ``z`` when the problem has a box, see ``_run``). Hot:
 the object is kept, ``update`` receives only the changed data and the solve starts from the
-previous result (``WARM_START_WITH_PREVIOUS_RESULT``); the preconditioner is not recomputed
-on update (ProxQP's default). Internal time: ``results.info.solve_time`` when
+previous result (``WARM_START_WITH_PREVIOUS_RESULT``), or from a given guess (an explicit
+``x0``, or the origin of a null-space level's coordinates: ``origin`` in
+:meth:`~wbcbench.qp.QPSolver.solve`); the preconditioner is not recomputed on update
+(ProxQP's default). Internal time: ``results.info.solve_time`` when
 ``compute_timings`` is on (this backend turns it on unless told otherwise); it covers the solve
 call, not ``init``/``update``.
 
@@ -116,6 +118,9 @@ class ProxQPSolver(QPSolver):
         t1 = time.perf_counter()
         self._run(qp, problem, guess)
         t2 = time.perf_counter()
+        if guess is not None:
+            # solve(x, y, z) leaves the object's setting at WARM_START: back to its hot start
+            qp.settings.initial_guess = proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
         return self._result(qp, problem, t1 - t0, t2 - t1)
 
     @staticmethod
