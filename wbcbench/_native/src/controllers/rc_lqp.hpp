@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Cholesky>
+#include <Eigen/SVD>
 #include <memory>
 #include <string>
 #include <vector>
@@ -176,8 +177,23 @@ class RcLqpTick : public Tick {
   Matrix D_;                  // the preview d = D q̈_p + d0
   Vector d0_;
   Vector gamma2_, cross_;
-  Matrix J_;  // scratch: stacked task rows
+  // scratch, sized at configure for every task row: a level's stacked task rows (its first
+  // rows), their drift and reduced drift, their plain columns
+  Matrix J_, Jp_;
   Vector v1_, v2_;
+  Matrix M_up_;  // M[uc, plain] of the tick (n_uc, n_p)
+  Vector x1_, reached_, w_;  // LQP 1's x kept for a re-plan; the coupling's target and w
+  Vector tau_p_, qdd_uc_, uc_work_, g_work_;  // assemble's: (n_p − 6), (n_uc) twice, (n_g)
+  // the preview's work per priority group with LQP 2 rows (its sizes are its rows' and the
+  // ranks', which the structure fixes): kept tick to tick
+  struct PreviewWork {
+    Matrix J, Ju, rhs, K, Vr, coef, Z;  // Z: what is left free after this group (in u)
+    Eigen::JacobiSVD<Matrix> svd;
+    Vector s_r, gain;
+  };
+  std::vector<int> preview_groups_;  // the groups with LQP 2 rows, in order (set_row_split)
+  std::vector<PreviewWork> pw_;
+  Matrix pu_;  // u = u0 + B q̈_p as [u0 B] (n_uc, 1 + n_p)
 
   HierarchyResult res1_, res2_, r1_, r2_;
   bool has_res2_ = false;
