@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -191,3 +192,55 @@ def test_native_async_closed_loop(tocabi: Robot) -> None:
     stale = result.log.arrays()["diag.params_staleness"]
     assert np.all(stale >= 0) and stale.max() >= 1
     assert os_threads() <= threads
+
+
+@native_only
+@pytest.mark.parametrize("name", ["to_osf", "osf_hqp"])
+def test_native_async_never_uses_a_set_from_before_a_change_of_contacts(
+    tocabi: Robot, name: str
+) -> None:
+    """A native tick with ``params: async`` that changes its contact set (one foot lifted, then
+    both again: a workspace and worker per set, the second change to a set held before) computes
+    the new set's parameters at the change and from then on takes only its worker's sets of
+    states published since: never one of the other contact set, nor one its own worker computed
+    before the tick last switched to it."""
+    loaded = load_scenario("tocabi_stand_sway")
+    ctx = scenario_context(loaded, tocabi, solver="daqp")
+    ctrl: Any = make_controller(name, ctx, {"params": "async", "impl": "native"})
+    rng = np.random.default_rng(7)
+    states = [random_standing_state(tocabi, rng, 0.02, 0.1) for _ in range(24)]
+    ctrl.start(RobotState(tocabi, *tocabi.keyframe("stand")))
+    tick = ctrl.native_tick
+
+    def hold(active: tuple[int, ...]) -> None:
+        """The controller's settings and QPs for the set, as a change of contacts makes them
+        (without the Python parameter server, which the native tick does not use)."""
+        ctrl.hold_contacts(active)
+        ctrl.group_tasks(ctrl.active_tasks)
+        ctrl.model = ctrl.osf_model()
+        ctrl.wrench_weighting()
+        ctrl._per_set[active] = {a: getattr(ctrl, a) for a in ctrl.set_attrs}
+        if tick.select_contacts(list(active)) and tick.contact_set not in seen:
+            ctrl.configure_tick(tick)
+            seen.add(tick.contact_set)
+            ctrl.workspaces[active] = (tick.contact_set, ctrl.qp_calls(tick))
+        ctrl.native_calls = ctrl.workspaces[active][1]
+        tick.set_wrench_bounds(ctrl.lw, ctrl.uw)
+
+    seen = {tick.contact_set}
+    ctrl.workspaces[(0, 1)] = (tick.contact_set, ctrl.native_calls)
+    since = 0  # the first state of the set held
+    for n, (q, v) in enumerate(states):
+        if n in (8, 16):
+            hold((1,) if n == 8 else (0, 1))
+            since = n
+        out = ctrl.step(RobotState(tocabi, q, v), 1.0 + 1e-3 * n)
+        assert out.ok, (n, out.message)
+        assert out.wrench.shape == (6 * len(ctrl.active_contacts),)
+        stale = int(out.diagnostics["params_staleness"])
+        assert n - stale >= since, (n, stale, since)  # a state of this set, since the change
+        p = ctrl.model.params(RobotState(tocabi, *states[n - stale]))
+        scale = max(1.0, float(np.abs(out.qdd).max()))
+        assert np.abs(p.qdd(out.tau) - out.qdd).max() <= 1e-8 * scale, n
+        time.sleep(0.01)  # let the worker catch up with the newest state
+    ctrl.close()

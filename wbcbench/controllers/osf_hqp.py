@@ -95,8 +95,9 @@ class OsfHqp(OsfControllerBase):
         s.WtW = np.asarray(self.WtW, dtype=float).reshape(self.nc, self.nc)
 
     def qp_calls(self, tick: Any) -> list[QpCall]:
-        """One QP per level, then the wrench QP where there is a distribution space."""
-        self._calls: dict[str, QpCall] = {}  # a new tick: new calls
+        """One QP per level, then the wrench QP where there is a distribution space: new calls
+        (a new tick, or the workspace of a contact set), each with its own C++ solver."""
+        self._calls: dict[str, QpCall] = {}
         return self.qp_calls_of(tick)
 
     def rebind_calls(self, tick: Any) -> None:
@@ -108,7 +109,7 @@ class OsfHqp(OsfControllerBase):
         """The tick's QPs, each with its handle: a QP keeps the call of its name (kept also
         while the QP is absent, e.g. the wrench QP in single support), and with it its C++
         solver, as long as the same handle solves it."""
-        L = len(self.levels)
+        L = len(self.held_levels())
         names = [f"T{i + 1}" for i in range(L)] + ["wrench"]
         solvers = [*self.solvers, self.final_solver]
         calls: list[QpCall] = []

@@ -109,6 +109,7 @@ class OsfControllerBase(NativeController):
     config: OsfBaseConfig
     affine: bool = False
     native_schedule = True
+    contact_workspaces = True
     #: what a contact set fixes (:meth:`contacts_changed`), kept per set after its first tick
     set_attrs: ClassVar[tuple[str, ...]] = ("levels", "kinds", "acc_bound", "level_tasks", "model")
     #: the native settings' type name in the module
@@ -141,6 +142,10 @@ class OsfControllerBase(NativeController):
                 f"valid choices: {', '.join(sorted(names))}"
             )
         self.tick = 0
+        #: the state the native tick sizes each contact set's parameters at (the first), and
+        #: while make_native configures the sets, that state (None otherwise)
+        self._start_state: RobotState | None = None
+        self._sizing: RobotState | None = None
 
     def osf_model(self) -> OsfModel:
         """The OSF model of the present levels and contact set."""
@@ -183,13 +188,32 @@ class OsfControllerBase(NativeController):
             self.__dict__.update(kept)
         self.server = ParameterServer(self.model, self.config.params, self.ctx.robot)
 
+    def held_levels(self) -> list[list[Task]]:
+        """The levels of the contact set held (:meth:`~Controller.hold_contacts`): those
+        :meth:`contacts_changed` made for it, also while :meth:`configure_workspaces` holds one
+        set after another without a change."""
+        kept = self._per_set.get(self.active_contacts)
+        return self.levels if kept is None else kept["levels"]
+
     def wrench_weighting(self) -> None:
         """The controller's wrench weighting for the current contact set (none here)."""
 
-    def start(self, state: RobotState) -> None:
-        super().start(state)
-        if self.impl == "native" and self.ctx.schedule is not None and -1 in self.active_contacts:
+    def on_start(self, state: RobotState) -> None:
+        super().on_start(state)
+        self._start_state = state
+
+    def make_native(self) -> None:
+        """The native tick (:meth:`NativeController.make_native`), with a workspace per contact
+        set of the schedule (``contact_workspaces``): each set's settings are made first
+        (:meth:`prepare_contact_sets`), and each set's parameters are sized at the start state
+        (``tick.prepare``), so that no change of contacts allocates in the tick."""
+        if self.ctx.schedule is not None and -1 in self.active_contacts:
             self.prepare_contact_sets(self.ctx.schedule)
+        self._sizing = self._start_state
+        try:
+            super().make_native()
+        finally:
+            self._sizing = None
 
     def prepare_contact_sets(self, schedule: ContactSchedule) -> None:
         """Before the first tick of a native run: what each contact set of the schedule fixes
@@ -223,6 +247,8 @@ class OsfControllerBase(NativeController):
         if s is None:
             s = self._tick_settings[self.active_contacts] = self.tick_settings()
         tick.configure(s)
+        if self._sizing is not None:  # set-up (make_native): the set's parameters sized
+            tick.prepare(self._sizing.q, self._sizing.v, 0.0)
 
     def tick_settings(self) -> Any:
         """The native settings of the present contact set."""

@@ -33,7 +33,12 @@ WBCBENCH_BIND(osf, kBase, m) {
                    [](const OsfTick& t) { return t.params().compute_time; })
       .def_prop_ro("message", &OsfTick::message)
       .def_prop_ro("worker_sets", &OsfTick::worker_sets)
-      .def("close", &OsfTick::close, "Stop the parameter worker thread (params: async).",
+      .def("close", &OsfTick::close, "Stop the parameter worker threads (params: async).",
+           nb::call_guard<nb::gil_scoped_release>())
+      .def("prepare", &OsfTick::prepare, nb::arg("q").noconvert(), nb::arg("v").noconvert(),
+           nb::arg("t"),
+           "Size the held contact set's parameters at (q, v, t) (after configure; the result is "
+           "dropped), so that a change to the set allocates nothing in the tick",
            nb::call_guard<nb::gil_scoped_release>())
       .def_prop_ro("partial", &OsfTick::partial, kView)
       .def_prop_ro("tau", &OsfTick::tau, kView)

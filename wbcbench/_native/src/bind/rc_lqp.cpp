@@ -63,8 +63,9 @@ WBCBENCH_BIND(rc_lqp, kController, m) {
             return const_cast<QpBuffers&>(t.slot(pool, i));
           },
           nb::arg("pool"), nb::arg("i"), kView)
-      .def_prop_ro("lqp1", [](const RcLqpTick& t) { return t.lqp1(); })
-      .def_prop_ro("lqp2", [](const RcLqpTick& t) { return t.lqp2(); })
+      // the tick's own results (no copy), valid until its next run
+      .def_prop_ro("lqp1", &RcLqpTick::lqp1, nb::rv_policy::reference_internal)
+      .def_prop_ro("lqp2", &RcLqpTick::lqp2, nb::rv_policy::reference_internal)
       .def_prop_ro("has_lqp2", &RcLqpTick::has_lqp2)
       .def_prop_ro("retries", &RcLqpTick::retries)
       .def_prop_ro("replanned", &RcLqpTick::replanned)

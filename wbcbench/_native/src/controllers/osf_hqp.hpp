@@ -20,8 +20,9 @@ struct OsfHqpSettings : OsfSettings {
 class OsfHqpTick : public OsfTick {
  public:
   using OsfTick::OsfTick;
-  // the settings of a contact set: again on a change of the set (after select_contacts), which
-  // makes the QPs anew (qp(i) of before then refers to nothing)
+  // the settings of the contact set the tick holds (its workspace's: OsfTick); again for each
+  // set, after select_contacts. Configuring a set again makes its QPs anew (its qp(i) of before
+  // then refers to nothing); a switch to a set configured before keeps them.
   void configure(const OsfHqpSettings& settings);
   void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                          const Eigen::Ref<const Vector>& uw) override;
@@ -32,20 +33,30 @@ class OsfHqpTick : public OsfTick {
   bool level(int i, const Eigen::Ref<const Vector>& x);
   // the wrench QP's solution (empty when there is none): τ, q̈ and the wrench
   void finish(const Eigen::Ref<const Vector>& x);
-  // the QPs: one per level, then the wrench QP where there is a distribution space
-  int n_qps() const { return static_cast<int>(qps_.size()); }
-  QpBuffers& qp(int i) { return qps_.at(i); }
-  const Vector& slack_norms() const { return slack_; }
+  // the QPs of the contact set the tick holds: one per level, then the wrench QP where there
+  // is a distribution space
+  int n_qps() const { return static_cast<int>(set().qps.size()); }
+  QpBuffers& qp(int i) { return set().qps.at(i); }
+  const Vector& slack_norms() const { return set().slack; }
 
  private:
-  void build_level(int i);
-  void build_wrench();
+  // a contact set's settings, QPs and the buffers its sizes fix
+  struct Set : OsfWorkspace {
+    OsfHqpSettings s;
+    int np = 0;
+    std::vector<QpBuffers> qps;
+    Vector cw_f0, slack, ftask, cw_base;  // C_w f₀, ‖w_i‖, f of the levels' torque, C_w (f₀ + F Γ)
+    Matrix CwF, CwQ, QW;
+  };
+  std::unique_ptr<OsfWorkspace> make_workspace() const override {
+    return std::make_unique<Set>();
+  }
+  Set& set() { return static_cast<Set&>(w()); }
+  const Set& set() const { return static_cast<const Set&>(w()); }
+  void build_level(Set& w, int i);
+  void build_wrench(Set& w);
 
-  OsfHqpSettings s_;
-  int np_ = 0;
-  std::vector<QpBuffers> qps_;
-  Vector base_, cw_f0_, slack_, ftask_;
-  Matrix CwF_, CwQ_, QW_;
+  Vector base_, dist_;  // (k,): Γ_{≤l} with w_l = 0; Y_c F_r
 };
 
 }  // namespace wbcbench

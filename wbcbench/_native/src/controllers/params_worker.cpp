@@ -14,11 +14,13 @@ constexpr std::chrono::microseconds kPoll{2000};
 ParamsWorker::ParamsWorker(const std::string& model, const std::vector<std::string>& task_frames,
                            const std::vector<std::string>& contact_frames,
                            const std::vector<Matrix>& contact_points,
-                           const std::vector<Matrix>& contact_bases, const TaskSet& tasks,
+                           const std::vector<Matrix>& contact_bases,
+                           const std::vector<int>& active, const TaskSet& tasks,
                            const OsfModelSpec& spec)
     : dyn_(model, task_frames, contact_frames), tasks_(tasks), model_(spec) {
   dyn_.set_inverse(true);
   dyn_.set_contact_points(contact_points, contact_bases);
+  if (active != dyn_.active_contacts()) dyn_.select_contacts(active);
   thread_ = std::thread([this] { run(); });
 }
 

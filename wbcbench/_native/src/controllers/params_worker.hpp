@@ -21,12 +21,14 @@ namespace wbcbench {
 class ParamsWorker {
  public:
   // The worker's own dynamics (a second Pinocchio model and data, from the same serialised
-  // model), a copy of the started tasks, and the parameters' model.
+  // model) holding the contacts `active` (indices into contact_frames, as
+  // RobotDynamics::select_contacts takes them), a copy of the started tasks, and the
+  // parameters' model: the parameters of one contact set.
   ParamsWorker(const std::string& model, const std::vector<std::string>& task_frames,
                const std::vector<std::string>& contact_frames,
                const std::vector<Matrix>& contact_points,
-               const std::vector<Matrix>& contact_bases, const TaskSet& tasks,
-               const OsfModelSpec& spec);
+               const std::vector<Matrix>& contact_bases, const std::vector<int>& active,
+               const TaskSet& tasks, const OsfModelSpec& spec);
   ~ParamsWorker();  // stops and joins the thread
   ParamsWorker(const ParamsWorker&) = delete;
   ParamsWorker& operator=(const ParamsWorker&) = delete;

@@ -186,6 +186,22 @@ void RcLqpTick::configure(const LexicographicSettings& settings, const RcLqpSett
   rows1_.assign(s_.groups.size(), {});
   rows2_.assign(s_.groups.size(), {});
   chain_priority_ = 0;
+  // the scratch every tick fills, at its sizes
+  const auto rows = tasks_.J().rows();
+  J_.setZero(rows, n_);
+  Jp_.setZero(rows, n_p_);
+  v1_.setZero(rows);
+  v2_.setZero(rows);
+  M_up_.setZero(n_uc_, n_p_);
+  x1_.setZero(nx1_);
+  reached_.setZero(n_g_);
+  w_.setZero(n_g_);
+  tau_p_.setZero(n_act);
+  qdd_uc_.setZero(n_uc_);
+  uc_work_.setZero(n_uc_);
+  g_work_.setZero(n_g_);
+  pu_.setZero(n_uc_, 1 + n_p_);
+  cw_f_.setZero(nw);
 }
 
 int RcLqpTick::handles(int pool) const {
@@ -220,6 +236,10 @@ void RcLqpTick::set_row_split(const std::vector<std::vector<int>>& lqp1_rows) {
     }
     if (!rows2_[g].empty() && chain_priority_ == 0) chain_priority_ = s_.priorities[g];
   }
+  preview_groups_.clear();
+  for (size_t g = 0; g < rows2_.size(); ++g)
+    if (!rows2_[g].empty()) preview_groups_.push_back(static_cast<int>(g));
+  pw_.resize(preview_groups_.size());
   classified_ = true;
 }
 
@@ -230,48 +250,50 @@ void RcLqpTick::preview() {
   const Matrix& Lt = reduced_->M_uc_factor();
   const auto plain = indices(plain_);
   const auto uc = indices(uc_);
-  Matrix u = Matrix::Zero(n_uc_, 1 + n_p_);
-  Matrix Z;  // orthonormal basis of what is left free (in u); empty: all
-  bool all_free = true;
-  std::vector<int> groups;
-  for (size_t g = 0; g < rows2_.size(); ++g)
-    if (!rows2_[g].empty()) groups.push_back(static_cast<int>(g));
-  for (size_t i = 0; i < groups.size(); ++i) {
-    const bool last = i + 1 == groups.size();
-    const std::vector<int>& rows = rows2_[groups[i]];
-    const auto r = indices(rows);
-    const int m = static_cast<int>(rows.size());
-    J_ = tasks_.J()(r, Eigen::all);
+  Matrix& u = pu_;
+  u.setZero();
+  const Matrix* Z = nullptr;  // orthonormal basis of what is left free (in u); null: all
+  for (size_t i = 0; i < preview_groups_.size(); ++i) {
+    PreviewWork& pw = pw_[i];
+    const bool last = i + 1 == preview_groups_.size();
+    const auto r = indices(rows2_[preview_groups_[i]]);
+    pw.J = tasks_.J()(r, Eigen::all);
     // J_uc L⁻ᵀ (= J_uc Lt⁻¹)
-    Matrix Ju = J_(Eigen::all, uc);
-    Lt.triangularView<Eigen::Upper>().solveInPlace<Eigen::OnTheRight>(Ju);
+    pw.Ju = pw.J(Eigen::all, uc);
+    Lt.triangularView<Eigen::Upper>().solveInPlace<Eigen::OnTheRight>(pw.Ju);
     // the rows' residual at u: [b − J_uc q̈_uc(u0)] − [J_p + J_uc L⁻ᵀ B] q̈_p
-    Matrix rhs(m, 1 + n_p_);
-    rhs.col(0) = tasks_.acc_ref()(r) - tasks_.drift()(r);
-    rhs.rightCols(n_p_) = -J_(Eigen::all, plain);
-    rhs.noalias() -= Ju * u;
-    const Matrix K = all_free ? Ju : Matrix(Ju * Z);
+    pw.rhs.resize(pw.J.rows(), 1 + n_p_);
+    pw.rhs.col(0) = tasks_.acc_ref()(r) - tasks_.drift()(r);
+    pw.rhs.rightCols(n_p_) = -pw.J(Eigen::all, plain);
+    pw.rhs.noalias() -= pw.Ju * u;
+    if (Z != nullptr) pw.K.noalias() = pw.Ju * *Z;
+    const Matrix& K = Z == nullptr ? pw.Ju : pw.K;
     const unsigned int vs = last ? Eigen::ComputeThinV : Eigen::ComputeFullV;
-    Eigen::JacobiSVD<Matrix> svd(K, Eigen::ComputeThinU | vs);
-    const Vector& sv = svd.singularValues();
+    pw.svd.compute(K, Eigen::ComputeThinU | vs);
+    const Vector& sv = pw.svd.singularValues();
     int rank = 0;
     if (sv.size() && sv(0) > 0.0)
       rank = static_cast<int>((sv.array() > kPreviewRankTol * sv(0)).count());
     if (rank) {
-      const Vector s_r = sv.head(rank);
-      const Vector gain =
-          s_r.array() / (s_r.array().square() + kPreviewDamping * sv(0) * sv(0));
-      const Matrix Vr = all_free ? Matrix(svd.matrixV().leftCols(rank))
-                                 : Matrix(Z * svd.matrixV().leftCols(rank));
-      const Matrix coef = gain.asDiagonal() * (svd.matrixU().leftCols(rank).transpose() * rhs);
-      u.noalias() += Vr * coef;
+      pw.s_r = sv.head(rank);
+      pw.gain = pw.s_r.array() / (pw.s_r.array().square() + kPreviewDamping * sv(0) * sv(0));
+      pw.coef.noalias() = pw.svd.matrixU().leftCols(rank).transpose() * pw.rhs;
+      pw.coef = pw.gain.asDiagonal() * pw.coef;
+      if (Z == nullptr) {
+        u.noalias() += pw.svd.matrixV().leftCols(rank) * pw.coef;
+      } else {
+        pw.Vr.noalias() = *Z * pw.svd.matrixV().leftCols(rank);
+        u.noalias() += pw.Vr * pw.coef;
+      }
     }
     if (last) break;
     const int free = static_cast<int>(K.cols()) - rank;
-    Z = all_free ? Matrix(svd.matrixV().rightCols(free))
-                 : Matrix(Z * svd.matrixV().rightCols(free));
-    all_free = false;
-    if (Z.cols() == 0) break;
+    if (Z == nullptr)
+      pw.Z = pw.svd.matrixV().rightCols(free);
+    else
+      pw.Z.noalias() = *Z * pw.svd.matrixV().rightCols(free);
+    Z = &pw.Z;
+    if (Z->cols() == 0) break;
   }
   // q̈_uc = L⁻ᵀ u; d = J_G q̈_uc + J̇_G q̇
   Lt.triangularView<Eigen::Upper>().solveInPlace(u);
@@ -334,12 +356,11 @@ int RcLqpTick::lqp1_levels(std::vector<PriorityLevel>& levels, bool with_preview
     const int m = static_cast<int>(rows.size());
     PriorityLevel& lv = level_at(levels, count++);
     lv.name = "lqp1.p" + std::to_string(p);
-    J_ = tasks_.J()(r, Eigen::all);
-    v1_ = tasks_.drift()(r);
-    v2_.resize(m);
+    J_.topRows(m) = tasks_.J()(r, Eigen::all);
+    v1_.head(m) = tasks_.drift()(r);
     lv.A.setZero(m, nx1_);
-    reduced_->task(J_, v1_, lv.A.leftCols(n_r_), v2_);
-    lv.b = tasks_.acc_ref()(r) - v2_;
+    reduced_->task(J_.topRows(m), v1_.head(m), lv.A.leftCols(n_r_), v2_.head(m));
+    lv.b = tasks_.acc_ref()(r) - v2_.head(m);
     no_inequalities(lv, nx1_);
   }
   if (pending) preview_level(level_at(levels, count++));
@@ -369,9 +390,9 @@ HierarchyOptions RcLqpTick::options(int count) const {
 
 // RcLqp.solve_lqp1: the levels weighted, the energy q̈_rᵀ M_r q̈_r + reg ‖f‖² (eq. 28) in the
 // last level's cost, aimed at the preview when `target`
-HierarchyResult RcLqpTick::solve_lqp1(int pool, const HardConstraints& hard,
-                                      std::vector<PriorityLevel>& levels, int count,
-                                      bool target, LevelSolver& solver) {
+const HierarchyResult& RcLqpTick::solve_lqp1(int pool, const HardConstraints& hard,
+                                             std::vector<PriorityLevel>& levels, int count,
+                                             bool target, LevelSolver& solver) {
   for (int i = 0; i < count; ++i)
     levels[i].weight = s_.weights[std::min<size_t>(i, s_.weights.size() - 1)];
   PriorityLevel& f = level_at(levels, count);
@@ -390,7 +411,7 @@ HierarchyResult RcLqpTick::solve_lqp1(int pool, const HardConstraints& hard,
   no_inequalities(f, nx1_);
   f.weight = s_.final_weight;
   Hierarchy& h = *hierarchies_[pool];
-  HierarchyResult result = h.solve(hard, levels, 1, options(count), solver);
+  const HierarchyResult& result = h.solve(hard, levels, 1, options(count), solver);
   solver_seconds_ += h.solver_seconds();
   return result;
 }
@@ -404,7 +425,7 @@ int RcLqpTick::lqp2_levels(std::vector<PriorityLevel>& levels, const Vector& x1,
   const auto uc = indices(uc_);
   const auto qdd_plain = x1.head(n_p_);
   if (rc_.assembly == Assembly::kExact) {
-    gamma2_.noalias() = dyn_.M()(uc, plain) * qdd_plain;
+    gamma2_.noalias() = M_up_ * qdd_plain;
     gamma2_ += dyn_.h()(uc);
   } else {
     gamma2_ = reduced_->b_uc() + reduced_->g_uc();
@@ -432,13 +453,15 @@ int RcLqpTick::lqp2_levels(std::vector<PriorityLevel>& levels, const Vector& x1,
       const std::vector<int>& rows = rows2_[g];
       if (rows.empty()) continue;
       const auto r = indices(rows);
+      const int m = static_cast<int>(rows.size());
       PriorityLevel& lv = level_at(levels, count++);
       lv.name = "lqp2.p" + std::to_string(s_.priorities[g]);
-      J_ = tasks_.J()(r, Eigen::all);
-      lv.A = J_(Eigen::all, uc);
+      J_.topRows(m) = tasks_.J()(r, Eigen::all);
+      lv.A = J_.topRows(m)(Eigen::all, uc);
       // base-relative reference: LQP 1's base and constraint-chain accelerations are known
       lv.b = tasks_.acc_ref()(r) - tasks_.drift()(r);
-      lv.b.noalias() -= J_(Eigen::all, plain) * qdd_plain;
+      Jp_.topRows(m) = J_.topRows(m)(Eigen::all, plain);
+      lv.b.noalias() -= Jp_.topRows(m) * qdd_plain;
       no_inequalities(lv, n_uc_);
     }
   }
@@ -454,8 +477,8 @@ int RcLqpTick::lqp2_levels(std::vector<PriorityLevel>& levels, const Vector& x1,
 
 // RcLqp.solve_lqp2: the energy q̈_ucᵀ M_uc q̈_uc (eq. 29), or the whole robot's q̈ᵀ M q̈ with
 // LQP 1's q̈ fixed (= ‖Lᵀ q̈_uc − f‖² + const, L f = −M_up q̈_p), in the last level's cost
-HierarchyResult RcLqpTick::solve_lqp2(int pool, std::vector<PriorityLevel>& levels, int count,
-                                      const Vector& x1, LevelSolver& solver) {
+const HierarchyResult& RcLqpTick::solve_lqp2(int pool, std::vector<PriorityLevel>& levels,
+                                             int count, const Vector& x1, LevelSolver& solver) {
   for (int i = 0; i < count; ++i)
     levels[i].weight = s_.weights[std::min<size_t>(i, s_.weights.size() - 1)];
   PriorityLevel& f = level_at(levels, count);
@@ -464,15 +487,17 @@ HierarchyResult RcLqpTick::solve_lqp2(int pool, std::vector<PriorityLevel>& leve
   f.name = "lqp2.energy";
   f.A = Lt;
   if (rc_.lqp2_energy == Lqp2Energy::kWhole) {
-    cross_.noalias() = dyn_.M()(indices(uc_), indices(plain_)) * x1.head(n_p_);
-    f.b = -Lt.triangularView<Eigen::Upper>().transpose().solve(cross_);
+    cross_.noalias() = M_up_ * x1.head(n_p_);
+    f.b = cross_;
+    Lt.triangularView<Eigen::Upper>().transpose().solveInPlace(f.b);
+    f.b *= -1.0;
   } else {
     f.b.setZero(n_uc_);
   }
   no_inequalities(f, n_uc_);
   f.weight = s_.final_weight;
   Hierarchy& h = *hierarchies_[pool];
-  HierarchyResult result = h.solve(hard2_, levels, 1, options(count), solver);
+  const HierarchyResult& result = h.solve(hard2_, levels, 1, options(count), solver);
   solver_seconds_ += h.solver_seconds();
   return result;
 }
@@ -499,19 +524,19 @@ bool RcLqpTick::plan(bool level, bool target, LevelSolver& solver) {
   has_res2_ = true;
   lqp2_time_ += seconds_since(t2);
   if (res2_.ok && rc_.coupling_priority) {
-    const Vector w = res2_.levels.at(count - 1).w;  // eq. (30)'s violation (the last level)
-    coupling_violation_ = w.norm();
-    if (w.norm() > rc_.coupling_tol) {
+    w_ = res2_.levels.at(count - 1).w;  // eq. (30)'s violation (the last level)
+    coupling_violation_ = w_.norm();
+    if (w_.norm() > rc_.coupling_tol) {
       // LQP 1 again, the centroidal acceleration LQP 2 reached as an extra priority
       t1 = Clock::now();
-      const Vector reached = res1_.x.segment(n_p_, n_g_) + w;
+      reached_ = res1_.x.segment(n_p_, n_g_) + w_;
       std::vector<PriorityLevel>& levels = levels_[kPoolLqp1Coupling];
       count = lqp1_levels(levels, level);
       PriorityLevel& lv = level_at(levels, count++);
       lv.name = "lqp1.coupling";
       lv.A.setZero(n_g_, nx1_);
       lv.A.block(0, n_p_, n_g_, n_g_).setIdentity();
-      lv.b = reached;
+      lv.b = reached_;
       no_inequalities(lv, nx1_);
       res1_ = solve_lqp1(kPoolLqp1Coupling, hard1_, levels, count, target, solver);
       lqp1_time_ += seconds_since(t1);
@@ -533,10 +558,11 @@ bool RcLqpTick::plan(bool level, bool target, LevelSolver& solver) {
 // a hard constraint of LQP 1, then LQP 2 again; false when a hierarchy failed
 bool RcLqpTick::replan(LevelSolver& solver) {
   if (n_uc_ == 0) return false;
-  const Vector x1 = res1_.x;
+  x1_ = res1_.x;
+  const Vector& x1 = x1_;
   auto t2 = Clock::now();
   int count = lqp2_levels(levels_[kPoolLqp2Reach], x1, false, true);
-  const HierarchyResult reach =
+  const HierarchyResult& reach =
       solve_lqp2(kPoolLqp2Reach, levels_[kPoolLqp2Reach], count, x1, solver);
   lqp2_time_ += seconds_since(t2);
   if (!reach.ok) return false;
@@ -584,6 +610,7 @@ std::string RcLqpTick::assemble(const Vector& x1, const Vector* x2, Vector& qdd,
   qdd(plain) = x1.head(n_p_);
   f = x1.tail(nc_);
   if (x2 != nullptr) qdd(uc) = *x2;
+  qdd_uc_ = qdd(uc);
   // the full inverse dynamics at (q̈, f): actuated rows for Γ, base rows as a check
   full_ = h;
   full_.noalias() += M * qdd;
@@ -591,11 +618,13 @@ std::string RcLqpTick::assemble(const Vector& x1, const Vector* x2, Vector& qdd,
   tau = full_.tail(k_);
   d.assembly_diff = kNaN;
   if (rc_.assembly == Assembly::kPaper || rc_.diagnostics) {
-    tau_paper_(indices(act_plain_)) = G1_ * x1 + nl_.segment(6, n_p_ - 6);
+    tau_p_.noalias() = G1_ * x1;
+    tau_p_ += nl_.segment(6, n_p_ - 6);
+    tau_paper_(indices(act_plain_)) = tau_p_;
     if (n_uc_) {
-      v1_ = reduced_->b_uc() + reduced_->g_uc();
-      v1_.noalias() += reduced_->M_uc() * qdd(uc);
-      tau_paper_(indices(act_uc_)) = v1_;
+      uc_work_ = reduced_->b_uc() + reduced_->g_uc();
+      uc_work_.noalias() += reduced_->M_uc() * qdd_uc_;
+      tau_paper_(indices(act_uc_)) = uc_work_;
     }
     d.assembly_diff = (tau - tau_paper_).cwiseAbs().maxCoeff();
     if (rc_.assembly == Assembly::kPaper) tau = tau_paper_;
@@ -605,9 +634,9 @@ std::string RcLqpTick::assemble(const Vector& x1, const Vector* x2, Vector& qdd,
   d.coupling_residual = kNaN;
   std::string why;
   if (n_uc_) {
-    v1_ = reduced_->dJG_v() - x1.segment(n_p_, n_g_);
-    v1_.noalias() += reduced_->J_G() * qdd(uc);
-    d.coupling_residual = max_abs(v1_);
+    g_work_ = reduced_->dJG_v() - x1.segment(n_p_, n_g_);
+    g_work_.noalias() += reduced_->J_G() * qdd_uc_;
+    d.coupling_residual = max_abs(g_work_);
     if (d.coupling_residual > tol)
       why = "eq. (30) not met (residual " + g3(d.coupling_residual) + ")";
   }
@@ -652,6 +681,7 @@ bool RcLqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
   }
   reduced_time_ = reduced_->compute(rc_.assembly == Assembly::kPaper || rc_.diagnostics);
   if (!classified_) throw std::logic_error("rc_lqp: run before set_row_split");
+  if (n_uc_) M_up_ = dyn_.M()(indices(uc_), indices(plain_));
   const auto tp = Clock::now();
   prepare_lqp1();  // (the reference builds these inside LQP 1's formulation)
   lqp1_time_ += seconds_since(tp);
@@ -697,10 +727,10 @@ bool RcLqpTick::run(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Ve
       wrench_ = fallback_.wrench();
       tau_ = fallback_.tau();
       // the residuals of the solution applied (the full model has no eq. 30)
-      v1_ = dyn_.h().head(6);
-      v1_.noalias() += dyn_.M().topRows(6) * qdd_;
-      v1_.noalias() -= dyn_.contact_jacobian().leftCols(6).transpose() * wrench_;
-      diag.base_residual = max_abs(v1_);
+      Vector6 base = dyn_.h().head(6);
+      base.noalias() += dyn_.M().topRows(6) * qdd_;
+      base.noalias() -= dyn_.contact_jacobian().leftCols(6).transpose() * wrench_;
+      diag.base_residual = max_abs(base);
       diag.coupling_residual = kNaN;
       diag.wrench_residual = wrench_violation(wrench_);
     }

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Cholesky>
+#include <Eigen/SVD>
 #include <memory>
 #include <string>
 #include <vector>
@@ -134,13 +135,14 @@ class RcLqpTick : public Tick {
   void prepare_lqp1();
   int lqp1_levels(std::vector<PriorityLevel>& levels, bool with_preview);
   void preview_level(PriorityLevel& lv) const;
-  HierarchyResult solve_lqp1(int pool, const HardConstraints& hard,
-                             std::vector<PriorityLevel>& levels, int count, bool target,
-                             LevelSolver& solver);
+  // the pool's hierarchy's result (valid until that pool solves again)
+  const HierarchyResult& solve_lqp1(int pool, const HardConstraints& hard,
+                                    std::vector<PriorityLevel>& levels, int count, bool target,
+                                    LevelSolver& solver);
   int lqp2_levels(std::vector<PriorityLevel>& levels, const Vector& x1, bool with_tasks,
                   bool coupling_last);
-  HierarchyResult solve_lqp2(int pool, std::vector<PriorityLevel>& levels, int count,
-                             const Vector& x1, LevelSolver& solver);
+  const HierarchyResult& solve_lqp2(int pool, std::vector<PriorityLevel>& levels, int count,
+                                    const Vector& x1, LevelSolver& solver);
   bool plan(bool level, bool target, LevelSolver& solver);
   bool replan(LevelSolver& solver);
   // how far f is outside the contacts' inequalities lw <= Cw f <= uw (0 inside)
@@ -176,8 +178,23 @@ class RcLqpTick : public Tick {
   Matrix D_;                  // the preview d = D q̈_p + d0
   Vector d0_;
   Vector gamma2_, cross_;
-  Matrix J_;  // scratch: stacked task rows
+  // scratch, sized at configure for every task row: a level's stacked task rows (its first
+  // rows), their drift and reduced drift, their plain columns
+  Matrix J_, Jp_;
   Vector v1_, v2_;
+  Matrix M_up_;  // M[uc, plain] of the tick (n_uc, n_p)
+  Vector x1_, reached_, w_;  // LQP 1's x kept for a re-plan; the coupling's target and w
+  Vector tau_p_, qdd_uc_, uc_work_, g_work_;  // assemble's: (n_p − 6), (n_uc) twice, (n_g)
+  // the preview's work per priority group with LQP 2 rows (its sizes are its rows' and the
+  // ranks', which the structure fixes): kept tick to tick
+  struct PreviewWork {
+    Matrix J, Ju, rhs, K, Vr, coef, Z;  // Z: what is left free after this group (in u)
+    Eigen::JacobiSVD<Matrix> svd;
+    Vector s_r, gain;
+  };
+  std::vector<int> preview_groups_;  // the groups with LQP 2 rows, in order (set_row_split)
+  std::vector<PreviewWork> pw_;
+  Matrix pu_;  // u = u0 + B q̈_p as [u0 B] (n_uc, 1 + n_p)
 
   HierarchyResult res1_, res2_, r1_, r2_;
   bool has_res2_ = false;

@@ -14,142 +14,174 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 }  // namespace
 
 void ToOsfTick::configure(const ToOsfSettings& settings) {
-  s_ = settings;
   configure_osf(settings, true);
-  if (s_.row_weights.size() != nr_) throw std::invalid_argument("to_osf: one weight per task row");
-  if (s_.Sf.cols() != nc_) throw std::invalid_argument("to_osf: Sf of wrong size");
+  Set& w = set();
+  w.s = settings;
+  const int nr = w.nr, nc = w.nc, kk = k();
+  if (w.s.row_weights.size() != nr) throw std::invalid_argument("to_osf: one weight per task row");
+  if (w.s.Sf.cols() != nc) throw std::invalid_argument("to_osf: Sf of wrong size");
   // F_opt = N w when the first contact's block of G is invertible (the Python reference's test,
   // on the initial configuration's shape: 6-D contacts keep it invertible), for the contact set
   // configured: a single 6-D contact has no internal wrench (nf = 0), two have six
-  basis_ = s_.internal_basis && nc_ >= 6;
-  nf_ = basis_ ? nc_ - 6 : nc_;
-  nx_ = nr_ + nf_;
-  h_task_ = s_.row_weights;
-  scale_ = nr_ ? 1.0 / h_task_.maxCoeff() : 1.0;
+  w.basis = w.s.internal_basis && nc >= 6;
+  w.nf = w.basis ? nc - 6 : nc;
+  w.nx = nr + w.nf;
+  w.h_task = w.s.row_weights;
+  w.scale = nr ? 1.0 / w.h_task.maxCoeff() : 1.0;
   // F_opt is solved for in units of σ so that both Hessian blocks are O(1)
-  w_f_ = (nc_ && s_.wrench_weight > 0) ? scale_ * s_.wrench_weight : scale_;
-  const double sigma = 1.0 / std::sqrt(w_f_);
-  D_.setOnes(nx_);
-  D_.tail(nf_).setConstant(sigma);
-  const bool box = (s_.acc_bound.array().abs() < kInf).any();
-  qp_.resize(nx_, nc_ && !basis_ ? 6 : 0, k() + static_cast<int>(s_.Cw.rows()), box);
+  w.w_f = (nc && w.s.wrench_weight > 0) ? w.scale * w.s.wrench_weight : w.scale;
+  const double sigma = 1.0 / std::sqrt(w.w_f);
+  w.D.setOnes(w.nx);
+  w.D.tail(w.nf).setConstant(sigma);
+  const bool box = (w.os.acc_bound.array().abs() < kInf).any();
+  w.qp.resize(w.nx, nc && !w.basis ? 6 : 0, kk + static_cast<int>(w.s.Cw.rows()), box);
   if (box) {
-    qp_.lb.head(nr_) = -s_.acc_bound;
-    qp_.ub.head(nr_) = s_.acc_bound;
+    w.qp.lb.head(nr) = -w.os.acc_bound;
+    w.qp.ub.head(nr) = w.os.acc_bound;
   }
-  Af_.setZero(nc_, nx_);
-  if (!basis_) Af_.rightCols(nc_).setIdentity();
-  N_.setZero(nc_, nf_);
-  if (basis_) N_.bottomRows(nf_).setIdentity();
-  rho_.setZero(nr_);
-  f_opt_.setZero(nc_);
+  w.Af.setZero(nc, w.nx);
+  if (!w.basis) w.Af.rightCols(nc).setIdentity();
+  w.N.setZero(nc, w.nf);
+  if (w.basis) w.N.bottomRows(w.nf).setIdentity();
+  w.rho.setZero(nr);
+  w.f_opt.setZero(nc);
+  w.fc.setZero(nc);
+  w.x_f.setZero(w.nf);
+  // what build() forms each tick, at its sizes
+  const auto nsf = w.s.Sf.rows();
+  w.SA.setZero(nsf, w.s.wrench_total ? w.nx : w.nf);
+  w.sf_fc.setZero(nsf);
+  w.cw_fc.setZero(w.nw);
+  prev_.setZero(kk);
+  step_.setZero(kk);
+  dist_.setZero(kk);
 }
 
 bool ToOsfTick::build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v,
                       double t) {
   const auto t0 = Clock::now();
   evaluate_osf(q, v, t);
-  const OsfParams& p = params_;
-  if (basis_ && !internal_basis()) {
+  Set& w = set();
+  const OsfParams& p = w.params;
+  const ToOsfSettings& s = w.s;
+  const int nr = w.nr, nc = w.nc, nf = w.nf, nw = w.nw;
+  QpBuffers& qp = w.qp;
+  if (w.basis && !internal_basis(w)) {
     throw std::runtime_error(
         "to_osf: the grasp map's first contact block is singular; use internal: constraint");
   }
   const int kk = k();
   const Vector& ref = level_ref();
   // f = A_f x + f_c  (eq. 13)
-  Af_.leftCols(nr_).noalias() = p.F * p.K;
-  if (basis_ && nf_ > 0) Af_.rightCols(nf_) = N_;
-  fc_ = p.f0;
-  fc_.noalias() += p.F * p.gamma0;
-  qp_.H.setZero();
-  qp_.g.setZero();
-  qp_.H.topLeftCorner(nr_, nr_).diagonal() = scale_ * h_task_;
-  qp_.g.head(nr_) = -scale_ * h_task_.cwiseProduct(ref);
-  if (nc_ && s_.wrench_weight > 0) {
-    const double hw = scale_ * s_.wrench_weight;
-    if (s_.wrench_total) {
-      SA_.noalias() = s_.Sf * Af_;
-      qp_.H.noalias() += hw * (SA_.transpose() * SA_);
-      sf_fc_.noalias() = s_.Sf * fc_;
-      qp_.g.noalias() += hw * (SA_.transpose() * sf_fc_);
-    } else if (basis_) {
-      if (nf_ > 0) {  // (a single contact has no internal wrench)
-        SA_.noalias() = s_.Sf * N_;
-        qp_.H.bottomRightCorner(nf_, nf_).noalias() += hw * (SA_.transpose() * SA_);
+  w.Af.leftCols(nr).noalias() = p.F * p.K;
+  if (w.basis && nf > 0) w.Af.rightCols(nf) = w.N;
+  w.fc = p.f0;
+  w.fc.noalias() += p.F * p.gamma0;
+  qp.H.setZero();
+  qp.g.setZero();
+  qp.H.topLeftCorner(nr, nr).diagonal() = w.scale * w.h_task;
+  qp.g.head(nr) = -w.scale * w.h_task.cwiseProduct(ref);
+  if (nc && s.wrench_weight > 0) {
+    const double hw = w.scale * s.wrench_weight;
+    if (s.wrench_total) {
+      w.SA.noalias() = s.Sf * w.Af;
+      qp.H.noalias() += hw * (w.SA.transpose() * w.SA);
+      w.sf_fc.noalias() = s.Sf * w.fc;
+      qp.g.noalias() += hw * (w.SA.transpose() * w.sf_fc);
+    } else if (w.basis) {
+      if (nf > 0) {  // (a single contact has no internal wrench)
+        w.SA.noalias() = s.Sf * w.N;
+        qp.H.bottomRightCorner(nf, nf).noalias() += hw * (w.SA.transpose() * w.SA);
       }
     } else {
-      qp_.H.bottomRightCorner(nc_, nc_).noalias() += hw * (s_.Sf.transpose() * s_.Sf);
+      qp.H.bottomRightCorner(nc, nc).noalias() += hw * (s.Sf.transpose() * s.Sf);
     }
   }
-  if (basis_ && nf_ > 0) {  // ‖F_opt‖² = wᵀ NᵀN w
-    qp_.H.bottomRightCorner(nf_, nf_).noalias() +=
-        (s_.regularization * w_f_) * (N_.transpose() * N_);
-  } else if (!basis_) {
-    qp_.H.bottomRightCorner(nc_, nc_).diagonal().array() += s_.regularization * w_f_;
-    if (nc_) qp_.A.rightCols(nc_) = p.G;  // G F_opt = 0 (eq. 14)
+  if (w.basis && nf > 0) {  // ‖F_opt‖² = wᵀ NᵀN w
+    qp.H.bottomRightCorner(nf, nf).noalias() +=
+        (s.regularization * w.w_f) * (w.N.transpose() * w.N);
+  } else if (!w.basis) {
+    qp.H.bottomRightCorner(nc, nc).diagonal().array() += s.regularization * w.w_f;
+    if (nc) qp.A.rightCols(nc) = p.G;  // G F_opt = 0 (eq. 14)
   }
-  qp_.C.topLeftCorner(kk, nr_) = p.K;
-  if (basis_) {
-    if (nf_ > 0) qp_.C.topRightCorner(kk, nf_).noalias() = p.Yw * N_;
+  qp.C.topLeftCorner(kk, nr) = p.K;
+  if (w.basis) {
+    if (nf > 0) qp.C.topRightCorner(kk, nf).noalias() = p.Yw * w.N;
   } else {
-    qp_.C.topRightCorner(kk, nc_) = p.Yw;
+    qp.C.topRightCorner(kk, nc) = p.Yw;
   }
-  qp_.l.head(kk) = -s_.tau_max - p.gamma0;
-  qp_.u.head(kk) = s_.tau_max - p.gamma0;
-  if (nc_) {
-    qp_.C.bottomRows(nw_).noalias() = s_.Cw * Af_;
-    cw_fc_.noalias() = s_.Cw * fc_;
-    qp_.l.tail(nw_) = os_.lw - cw_fc_;
-    qp_.u.tail(nw_) = os_.uw - cw_fc_;
+  qp.l.head(kk) = -s.tau_max - p.gamma0;
+  qp.u.head(kk) = s.tau_max - p.gamma0;
+  if (nc) {
+    qp.C.bottomRows(nw).noalias() = s.Cw * w.Af;
+    w.cw_fc.noalias() = s.Cw * w.fc;
+    qp.l.tail(nw) = w.os.lw - w.cw_fc;
+    qp.u.tail(nw) = w.os.uw - w.cw_fc;
   }
   // x = D x̃
-  qp_.H = D_.asDiagonal() * qp_.H * D_.asDiagonal();
-  qp_.g.array() *= D_.array();
-  qp_.A = qp_.A * D_.asDiagonal();
-  qp_.C = qp_.C * D_.asDiagonal();
-  const bool ok = qp_.finite();
+  qp.H = w.D.asDiagonal() * qp.H * w.D.asDiagonal();
+  qp.g.array() *= w.D.array();
+  qp.A = qp.A * w.D.asDiagonal();
+  qp.C = qp.C * w.D.asDiagonal();
+  const bool ok = qp.finite();
   times_.build = seconds_since(t0) - times_.dynamics - times_.params;
   return ok;
 }
 
 void ToOsfTick::set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                                   const Eigen::Ref<const Vector>& uw) {
-  store_wrench_bounds("to_osf", os_, lw, uw);
+  store_wrench_bounds("to_osf", w().os, lw, uw);
 }
 
-bool ToOsfTick::internal_basis() {
-  const Matrix& G = params_.G;
-  lu_.compute(G.leftCols(6));  // (the member keeps its storage from tick to tick)
-  if (!(lu_.rcond() > 1e-12)) return false;
-  if (nf_ > 0) N_.topRows(6).noalias() = -lu_.solve(G.rightCols(nf_));
+bool ToOsfTick::internal_basis(Set& w) {
+  const Matrix& G = w.params.G;
+  // the reference's test, cond₁(B) < 1e12, on the 6 × 6 block B (its inverse formed on the
+  // stack: allocation-free)
+  const Eigen::Matrix<double, 6, 6> B = G.leftCols(6);
+  lu_.compute(B);
+  const Eigen::Matrix<double, 6, 6> Binv = lu_.inverse();
+  const double norm = B.cwiseAbs().colwise().sum().maxCoeff();
+  const double inv_norm = Binv.cwiseAbs().colwise().sum().maxCoeff();
+  if (!(1.0 / (norm * inv_norm) > 1e-12)) return false;
+  if (w.nf > 0) {
+    w.N.topRows(6) = lu_.solve(G.rightCols(w.nf));
+    w.N.topRows(6) *= -1.0;
+  }
   return true;
 }
 
 void ToOsfTick::finish(const Eigen::Ref<const Vector>& x) {
   const auto t0 = Clock::now();
-  if (x.size() != nx_) throw std::invalid_argument("to_osf: solution of wrong size");
-  rho_ = x.head(nr_);  // x = D x̃: D is 1 on the references, σ on F_opt
-  if (basis_) {
-    f_opt_.setZero(nc_);
-    if (nf_ > 0) f_opt_.noalias() = N_ * x.tail(nf_).cwiseProduct(D_.tail(nf_));
+  Set& w = set();
+  const OsfParams& p = w.params;
+  const int nr = w.nr, nc = w.nc, nf = w.nf;
+  if (x.size() != w.nx) throw std::invalid_argument("to_osf: solution of wrong size");
+  w.rho = x.head(nr);  // x = D x̃: D is 1 on the references, σ on F_opt
+  if (w.basis) {
+    w.f_opt.setZero(nc);
+    if (nf > 0) {
+      w.x_f = x.tail(nf).cwiseProduct(w.D.tail(nf));
+      w.f_opt.noalias() = w.N * w.x_f;
+    }
   } else {
-    f_opt_ = x.tail(nc_).cwiseProduct(D_.tail(nc_));
+    w.f_opt = x.tail(nc).cwiseProduct(w.D.tail(nc));
   }
-  prev_.setZero(k());
+  prev_.setZero();
   for (int i = 0; i < levels(); ++i) {
-    params_.level_step(i, prev_, rho_.segment(offsets_[i], os_.level_dims[i]), work_);
-    partial_.row(i) = work_.transpose();
-    prev_ = work_;
+    const int m = w.os.level_dims[i];
+    p.level_step(i, prev_, w.rho.segment(w.offsets[i], m), step_, w.level_work.head(m));
+    w.partial.row(i) = step_.transpose();
+    prev_.swap(step_);
   }
-  dist_.setZero(k());
-  if (nc_) dist_.noalias() = params_.Yw * f_opt_;
+  dist_.setZero();
+  if (nc) dist_.noalias() = p.Yw * w.f_opt;
   realise(dist_);
-  if (nc_ && dyn_.contact_rows_redundant()) {
+  if (nc && dyn_.contact_rows_redundant()) {
     // the QP's distribution: F_opt's part no torque produces (forces along a line contact,
     // which change no wrench at the frame) is the one that holds each point in its cone
-    wrench_ += f_opt_;
-    qf_f_.noalias() = params_.Qf.transpose() * f_opt_;
-    wrench_.noalias() -= params_.Qf * qf_f_;
+    w.wrench += w.f_opt;
+    w.qf_f.noalias() = p.Qf.transpose() * w.f_opt;
+    w.wrench.noalias() -= p.Qf * w.qf_f;
   }
   times_.build += seconds_since(t0);
 }

@@ -20,7 +20,8 @@ struct ToOsfSettings : OsfSettings {
 class ToOsfTick : public OsfTick {
  public:
   using OsfTick::OsfTick;
-  // the settings of a contact set: again on a change of the set (after select_contacts)
+  // the settings of the contact set the tick holds (its workspace's: OsfTick); again for each
+  // set, after select_contacts
   void configure(const ToOsfSettings& settings);
   void set_wrench_bounds(const Eigen::Ref<const Vector>& lw,
                          const Eigen::Ref<const Vector>& uw) override;
@@ -28,23 +29,34 @@ class ToOsfTick : public OsfTick {
   bool build(const Eigen::Ref<const Vector>& q, const Eigen::Ref<const Vector>& v, double t);
   // τ, q̈ and the wrench from the QP's solution (scaled variables)
   void finish(const Eigen::Ref<const Vector>& x);
-  QpBuffers& qp() { return qp_; }
-  const Vector& rho() const { return rho_; }  // the optimised task references
+  // the QP of the contact set the tick holds
+  QpBuffers& qp() { return set().qp; }
+  const Vector& rho() const { return set().rho; }  // the optimised task references
 
  private:
-  // N: wbcbench.controllers.to_osf.internal_basis of params_.G; false when there is none
-  bool internal_basis();
+  // a contact set's settings, QP and the buffers its sizes fix
+  struct Set : OsfWorkspace {
+    ToOsfSettings s;
+    int nx = 0, nf = 0;   // variables; F_opt's part of them (c, or c − 6 with a basis)
+    bool basis = false;   // this configuration parametrises F_opt by a basis N
+    Matrix N;
+    double scale = 1.0, w_f = 1.0;
+    Vector D, h_task, rho, f_opt, fc, x_f;  // … x_f: F_opt's variables in their units
+    Vector sf_fc, cw_fc, qf_f;  // S_f f_c, C_w f_c, Q_fᵀ F_opt
+    Matrix Af, SA;
+    QpBuffers qp;
+  };
+  std::unique_ptr<OsfWorkspace> make_workspace() const override {
+    return std::make_unique<Set>();
+  }
+  Set& set() { return static_cast<Set&>(w()); }
+  const Set& set() const { return static_cast<const Set&>(w()); }
+  // N: wbcbench.controllers.to_osf.internal_basis of the parameters' G; false when there is none
+  bool internal_basis(Set& w);
 
-  ToOsfSettings s_;
-  int nx_ = 0, nf_ = 0;   // variables; F_opt's part of them (c, or c − 6 with a basis)
-  bool basis_ = false;    // this configuration parametrises F_opt by a basis N
-  Matrix N_;
-  Eigen::PartialPivLU<Matrix> lu_;  // of G's first contact block
-  double scale_ = 1.0, w_f_ = 1.0;
-  Vector D_, h_task_, rho_, f_opt_, fc_, prev_;
-  Vector sf_fc_, cw_fc_, dist_, qf_f_;  // S_f f_c, C_w f_c, Y_w F_opt, Q_fᵀ F_opt
-  Matrix Af_, SA_;
-  QpBuffers qp_;
+  // G's first contact block (6 × 6: fixed-size, on the stack)
+  Eigen::PartialPivLU<Eigen::Matrix<double, 6, 6>> lu_;
+  Vector prev_, step_, dist_;  // (k,): Γ_{<i}, Γ_{≤i}, Y_w F_opt
 };
 
 }  // namespace wbcbench

@@ -115,14 +115,14 @@ int PsdPinv::compute(const Matrix& X, bool by_svd, double rcond, double scale, M
 }
 
 void OsfParams::level_step(int i, const Vector& prev, const Eigen::Ref<const Vector>& ref,
-                           Vector& out) const {
+                           Vector& out, Eigen::Ref<Vector> work) const {
   const LevelParams& lv = levels[i];
   out = prev;
   out.noalias() += lv.E * ref;
   out.noalias() -= lv.B * lv.bias;
   if (exact) {
-    const Vector jp = lv.Jhat * prev;
-    out.noalias() -= lv.B * jp;
+    work.noalias() = lv.Jhat * prev;
+    out.noalias() -= lv.B * work;
   }
 }
 

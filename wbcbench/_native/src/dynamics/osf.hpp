@@ -73,9 +73,10 @@ struct OsfParams {
   long tick = 0;
   double compute_time = 0.0;
 
-  // Γ_{≤i} from Γ_{<i} and level i's reference; out may not alias prev
-  void level_step(int i, const Vector& prev, const Eigen::Ref<const Vector>& ref,
-                  Vector& out) const;
+  // Γ_{≤i} from Γ_{<i} and level i's reference; out may not alias prev; work is scratch of the
+  // level's rows (m,): allocates nothing once out is sized
+  void level_step(int i, const Vector& prev, const Eigen::Ref<const Vector>& ref, Vector& out,
+                  Eigen::Ref<Vector> work) const;
 };
 
 // The levels (row blocks of the stacked task Jacobian) and contacts the parameters are for.
