@@ -267,7 +267,9 @@ class LevelSolve:
 
     ``origin``: the hierarchy's QPs are null-space levels, over coordinates made afresh every
     tick; warm and hot handles start them at the origin (``origin`` in
-    :meth:`~wbcbench.qp.QPSolver.solve`), as the Python hierarchy does.
+    :meth:`~wbcbench.qp.QPSolver.solve`), as the Python hierarchy does, except the handles whose
+    backend the module links: their C++ solver starts from its own last iterate, and the same
+    handle called through Python does too, so that the two ways of calling a backend agree.
     """
 
     def __init__(
@@ -287,6 +289,7 @@ class LevelSolve:
         self.failed: Any = None
         self._kept: list[Problem] = []
         self.natives: Any = None
+        self._linked_handles: dict[tuple[int, int], bool] = {}
         # the pools' handles whose answers are checked after the step (SolverCapture)
         self.sinks = {
             (p, i): handle.sink
@@ -304,6 +307,15 @@ class LevelSolve:
                     solver = handle.native_solver()
                     if solver is not None:
                         self.natives.set(p, i, solver)
+
+    def _linked(self, pool: int, handle: int) -> bool:
+        """Whether the module links the handle's backend (a C++ solver exists for it)."""
+        key = (pool, handle)
+        linked = self._linked_handles.get(key)
+        if linked is None:
+            linked = self.pools[pool][handle].native_solver() is not None
+            self._linked_handles[key] = linked
+        return linked
 
     def start(self, timer: NativeTimer) -> None:
         """Before a tick: the timer its solutions go to."""
@@ -352,7 +364,9 @@ class LevelSolve:
         if problem is None or reshaped:
             problem = qp_view(self.slots(pool, slot), level)
             self.views[(pool, slot)] = problem
-        sol = self.pools[pool][handle].solve(problem, lean=True, origin=self.origin)
+        sol = self.pools[pool][handle].solve(
+            problem, lean=True, origin=self.origin and not self._linked(pool, handle)
+        )
         if self.timer is not None:
             self.timer.add_solution(sol, level)
         if self.keep:
