@@ -55,13 +55,7 @@ void FullLqp::configure(const LexicographicSettings& settings, int n, int nc, in
   const LexicographicSettings& s = w.s;
   // priority 1 (hard): the floating-base rows and the torque limits, Γ = G x + γ
   HardConstraints& hard = w.hard;
-  hard.A.setZero(6, nx);
-  hard.b.setZero(6);
-  hard.C.setZero(k_, nx);
-  hard.l.setZero(k_);
-  hard.u.setZero(k_);
-  hard.lb.resize(0);
-  hard.ub.resize(0);
+  hard.zero(6, k_, nx);
   w.G.setZero(k_, nx);
   w.gamma.setZero(k_);
   w.levels.clear();

@@ -145,23 +145,11 @@ void RcLqpTick::configure(const LexicographicSettings& settings, const RcLqpSett
   // LQP 1's priority 1 (hard): the Newton–Euler rows of eq. (14) and the constraint chain's
   // torque limits; the contacts level's inequalities: the wrench cone and the q̈ limits
   const int n_act = n_p_ - 6;
-  hard1_.A.setZero(6, nx1_);
-  hard1_.b.setZero(6);
-  hard1_.C.setZero(n_act, nx1_);
-  hard1_.l.setZero(n_act);
-  hard1_.u.setZero(n_act);
-  hard1_.lb.resize(0);
-  hard1_.ub.resize(0);
+  hard1_.zero(6, n_act, nx1_);
   hard1r_ = hard1_;
   hard1r_.A.setZero(6 + n_g_, nx1_);
   hard1r_.b.setZero(6 + n_g_);
-  hard2_.A.setZero(0, n_uc_);
-  hard2_.b.setZero(0);
-  hard2_.C.setZero(0, n_uc_);
-  hard2_.l.setZero(0);
-  hard2_.u.setZero(0);
-  hard2_.lb.resize(0);
-  hard2_.ub.resize(0);
+  hard2_.zero(0, 0, n_uc_);
   C2_.setZero(nw + n_act, nx1_);
   C2_.block(0, n_r_, nw, nc_) = s_.Cw;
   C2_.block(nw, 6, n_act, n_act).setIdentity();

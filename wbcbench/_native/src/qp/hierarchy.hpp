@@ -25,6 +25,16 @@ struct HardConstraints {
   Vector b, l, u, lb, ub;
   int n() const { return static_cast<int>(A.cols()); }
   bool has_box() const { return lb.size() > 0; }
+  // n_eq equality and n_in inequality rows over n variables, all zero, and no box
+  void zero(Eigen::Index n_eq, Eigen::Index n_in, Eigen::Index n) {
+    A.setZero(n_eq, n);
+    b.setZero(n_eq);
+    C.setZero(n_in, n);
+    l.setZero(n_in);
+    u.setZero(n_in);
+    lb.resize(0);
+    ub.resize(0);
+  }
 };
 
 // One soft level: minimise ‖A x − b‖² + ‖v‖² with l ≤ C x − v ≤ u. Finals are levels with
